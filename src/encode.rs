@@ -1,0 +1,162 @@
+//! Encode: per-receiver results into lightmap images.
+//!
+//! In: [`Receivers`], their [`Bake`], the dilation map. Out: a float
+//! [`Lightmap`] (AO and 9 SH channels for every texel) and its [`Encoded`]
+//! form per the output contract: AO as an 8-bit grey PNG, SH as three RGBA8
+//! PNGs with per-coefficient scale and offset (c_i = shScale[i] * channel_i +
+//! shOffset[i]; c0..c3 = T0.rgba, c4..c7 = T1.rgba, c8 = T2.r). Optionally a
+//! float EXR with channels `ao`, `sh0`..`sh8`.
+
+use crate::dilate::NONE;
+use crate::error::{Error, Result};
+use crate::mc::Bake;
+use crate::rasterize::Receivers;
+use crate::sh::SH_COUNT;
+use image::ImageEncoder;
+use std::path::Path;
+
+/// Float lightmap images, row-major, row 0 at the top (glTF v = 0).
+#[derive(Clone, Debug)]
+pub struct Lightmap {
+    pub width: u32,
+    pub height: u32,
+    pub ao: Vec<f32>,
+    pub sh: Vec<[f32; SH_COUNT]>,
+    /// Whether each texel holds a receiver of its own (not dilated).
+    pub covered: Vec<bool>,
+}
+
+/// The contract's encoded images.
+#[derive(Clone, Debug)]
+pub struct Encoded {
+    pub occlusion_png: Vec<u8>,
+    pub sh_png: [Vec<u8>; 3],
+    pub sh_scale: [f32; SH_COUNT],
+    pub sh_offset: [f32; SH_COUNT],
+}
+
+/// Spreads receiver results over the image through the dilation map.
+/// Fails if any value is NaN or infinite (it must never reach a texture).
+pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Lightmap> {
+    if let Some(r) = (0..receivers.len()).find(|&r| !bake.ao[r].is_finite() || !bake.sh[r].iter().all(|c| c.is_finite())) {
+        let t = receivers.texel[r];
+        return Err(Error::Encode(format!(
+            "non-finite result at texel ({}, {})",
+            t % receivers.width,
+            t / receivers.width
+        )));
+    }
+    let mut covered = vec![false; fill.len()];
+    for &t in &receivers.texel {
+        covered[t as usize] = true;
+    }
+    let pick = |t: &u32| (*t != NONE).then(|| *t as usize);
+    Ok(Lightmap {
+        width: receivers.width,
+        height: receivers.height,
+        ao: fill.iter().map(|t| pick(t).map_or(1.0, |r| bake.ao[r])).collect(),
+        sh: fill.iter().map(|t| pick(t).map_or([0.0; SH_COUNT], |r| bake.sh[r])).collect(),
+        covered,
+    })
+}
+
+fn png(width: u32, height: u32, data: &[u8], color: image::ExtendedColorType) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(data, width, height, color)
+        .map_err(|e| Error::Encode(e.to_string()))?;
+    Ok(out)
+}
+
+#[inline]
+fn to_u8(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// Scale and offset mapping each coefficient's range onto [0, 1].
+pub fn sh_range(sh: &[[f32; SH_COUNT]]) -> ([f32; SH_COUNT], [f32; SH_COUNT]) {
+    let mut lo = [f32::INFINITY; SH_COUNT];
+    let mut hi = [f32::NEG_INFINITY; SH_COUNT];
+    for c in sh {
+        for i in 0..SH_COUNT {
+            lo[i] = lo[i].min(c[i]);
+            hi[i] = hi[i].max(c[i]);
+        }
+    }
+    let mut scale = [0.0; SH_COUNT];
+    let mut offset = [0.0; SH_COUNT];
+    for i in 0..SH_COUNT {
+        if lo[i].is_finite() {
+            offset[i] = lo[i];
+            scale[i] = hi[i] - lo[i];
+        }
+    }
+    (scale, offset)
+}
+
+/// Encodes the lightmap per the output contract.
+pub fn encode(lm: &Lightmap) -> Result<Encoded> {
+    let (w, h) = (lm.width, lm.height);
+    let ao: Vec<u8> = lm.ao.iter().map(|&a| to_u8(a)).collect();
+    let occlusion_png = png(w, h, &ao, image::ExtendedColorType::L8)?;
+    let (sh_scale, sh_offset) = sh_range(&lm.sh);
+    let channel = |c: &[f32; SH_COUNT], i: usize| -> u8 {
+        if sh_scale[i] > 0.0 { to_u8((c[i] - sh_offset[i]) / sh_scale[i]) } else { 0 }
+    };
+    let mut pages: [Vec<u8>; 3] = Default::default();
+    for (p, page) in pages.iter_mut().enumerate() {
+        let mut rgba = Vec::with_capacity(lm.sh.len() * 4);
+        for c in &lm.sh {
+            for k in 0..4 {
+                let i = p * 4 + k;
+                rgba.push(if i < SH_COUNT { channel(c, i) } else if k == 3 { 255 } else { 0 });
+            }
+        }
+        *page = png(w, h, &rgba, image::ExtendedColorType::Rgba8)?;
+    }
+    Ok(Encoded {
+        occlusion_png,
+        sh_png: pages,
+        sh_scale,
+        sh_offset,
+    })
+}
+
+/// Writes `ao` and `sh0`..`sh8` as 32-bit float channels of one EXR layer.
+pub fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
+    use exr::prelude::*;
+    let mut chans: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    chans.push(AnyChannel::new("ao", FlatSamples::F32(lm.ao.clone())));
+    for i in 0..SH_COUNT {
+        chans.push(AnyChannel::new(
+            format!("sh{i}").as_str(),
+            FlatSamples::F32(lm.sh.iter().map(|c| c[i]).collect()),
+        ));
+    }
+    let layer = Layer::new(
+        (lm.width as usize, lm.height as usize),
+        LayerAttributes::named("lightmap"),
+        Encoding::SMALL_FAST_LOSSLESS,
+        AnyChannels::sort(chans),
+    );
+    Image::from_layer(layer)
+        .write()
+        .to_file(path)
+        .map_err(|e| crate::error::Error::Encode(format!("{}: {e}", path.display())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sh_range_maps_extremes_to_0_and_1() {
+        let sh = vec![[0.5; SH_COUNT], [-0.25; SH_COUNT], [0.1; SH_COUNT]];
+        let (s, o) = sh_range(&sh);
+        for i in 0..SH_COUNT {
+            assert!((o[i] + 0.25).abs() < 1e-7 && (s[i] - 0.75).abs() < 1e-7);
+        }
+        let (s, o) = sh_range(&[[0.3; SH_COUNT]]);
+        assert!(s.iter().all(|&v| v == 0.0) && o.iter().all(|&v| (v - 0.3).abs() < 1e-7));
+    }
+}

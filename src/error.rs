@@ -1,0 +1,52 @@
+//! The one error type of the library: every failure is a single line that
+//! names the offending glTF object (`meshes[3].primitives[0]`) or file.
+
+use std::path::PathBuf;
+
+/// Result alias used across the pipeline.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can stop a bake. Each variant prints as one line.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Reading or writing a file failed.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The container (GLB header/chunks or JSON syntax) is malformed.
+    #[error("invalid glTF container: {0}")]
+    Container(String),
+    /// The glTF document is structurally invalid; the string names the object.
+    #[error("invalid glTF: {0}")]
+    Invalid(String),
+    /// The document uses a feature aobake cannot read.
+    #[error("unsupported glTF: {0}")]
+    Unsupported(String),
+    /// The scene has nothing to bake.
+    #[error("nothing to bake: {0}")]
+    Empty(String),
+    /// A limit that protects the machine was exceeded.
+    #[error("limit exceeded: {0}")]
+    Limit(String),
+    /// Bad command-line or library options.
+    #[error("invalid option: {0}")]
+    Option(String),
+    /// The UV unwrapper failed.
+    #[error("UV unwrap failed: {0}")]
+    Unwrap(String),
+    /// Encoding an image failed.
+    #[error("encoding failed: {0}")]
+    Encode(String),
+}
+
+impl Error {
+    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}

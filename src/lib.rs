@@ -1,0 +1,23 @@
+//! aobake: bakes ambient occlusion and 9-coefficient spherical-harmonic
+//! directional occlusion into lightmaps and writes them back into glTF.
+//!
+//! The pipeline has one module per stage, in order:
+//! [`load`] -> [`unwrap`] -> [`rasterize`] -> [`trace`] -> [`mc`] (with
+//! [`sample`] and [`sh`]) -> [`dilate`] -> [`encode`] -> [`write`];
+//! [`pipeline`] runs them. See the README for the output format.
+
+pub mod dilate;
+pub mod encode;
+pub mod error;
+pub mod load;
+pub mod mc;
+pub mod pipeline;
+pub mod rasterize;
+pub mod sample;
+pub mod sh;
+pub mod trace;
+pub mod unwrap;
+pub mod write;
+
+pub use error::{Error, Result};
+pub use pipeline::{Method, Report, Settings, bake_file, bake_scene, run};

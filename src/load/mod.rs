@@ -1,0 +1,494 @@
+//! Load: a `.glb`/`.gltf` file into placed triangle geometry.
+//!
+//! In: a path. Out: a [`Scene`]: the untouched [`Document`] (for the
+//! write-back), each triangle primitive decoded once ([`PrimitiveGeometry`]),
+//! and every placement of it in the default scene ([`Instance`]) with its
+//! world transform and whether it is baked or only occludes. [`Scene::bake_geometry`]
+//! then maps everything into *bake space* (world recentred on the scene's
+//! bounding box and divided by its diagonal), where the rest of the pipeline
+//! works at unit scale whatever the file's units.
+
+pub mod accessor;
+pub mod container;
+
+use crate::error::{Error, Result};
+use accessor::{array, field_usize};
+pub use container::Document;
+use glam::{DMat3, DMat4, DQuat, DVec3, Vec3, Vec3A};
+use serde_json::Value;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Extensions whose geometry cannot be decoded.
+const COMPRESSION_EXTENSIONS: [&str; 3] = [
+    "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+];
+
+/// Most triangles a scene may have (all instances), protecting memory.
+pub const MAX_TRIANGLES: usize = 50_000_000;
+
+/// One triangle primitive of one mesh, decoded.
+#[derive(Debug, Clone)]
+pub struct PrimitiveGeometry {
+    pub mesh: usize,
+    pub primitive: usize,
+    /// POSITION in mesh space (dequantized).
+    pub positions: Vec<[f32; 3]>,
+    /// NORMAL in mesh space, if present.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Triangle list (strips and fans expanded), indexing `positions`.
+    pub triangles: Vec<u32>,
+    /// The primitive has morph targets (occludes in its base pose, not baked).
+    pub morphed: bool,
+}
+
+/// A placement of a primitive in the scene.
+#[derive(Debug, Clone)]
+pub struct Instance {
+    pub node: usize,
+    pub geometry: usize,
+    /// Mesh space to world space.
+    pub transform: DMat4,
+    /// Whether this placement receives a lightmap (otherwise it only occludes).
+    pub baked: bool,
+}
+
+/// A loaded scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub doc: Document,
+    pub geometries: Vec<PrimitiveGeometry>,
+    pub instances: Vec<Instance>,
+    /// Things the user should know (not baked, ignored), one line each.
+    pub warnings: Vec<String>,
+}
+
+/// The uniform map from world space to bake space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BakeSpace {
+    pub center: DVec3,
+    /// World length of the scene's bounding-box diagonal; bake-space unit.
+    pub diagonal: f64,
+}
+
+impl BakeSpace {
+    pub fn to_bake(&self, p: DVec3) -> Vec3 {
+        ((p - self.center) / self.diagonal).as_vec3()
+    }
+}
+
+/// A baked placement in bake space, ready to unwrap and rasterize.
+#[derive(Debug, Clone)]
+pub struct ReceiverMesh {
+    /// Index into [`Scene::instances`].
+    pub instance: usize,
+    /// Positions in bake space.
+    pub positions: Vec<[f32; 3]>,
+    /// Unit world-space normals, if the primitive has them.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Triangle list indexing `positions` (same as the primitive's).
+    pub triangles: Vec<u32>,
+    /// The transform mirrors (negative determinant): winding is flipped.
+    pub mirrored: bool,
+}
+
+/// All geometry of a scene in bake space.
+#[derive(Debug, Clone)]
+pub struct BakeGeometry {
+    pub space: BakeSpace,
+    /// Every non-degenerate triangle of every instance (occluders).
+    pub occluders: Vec<[Vec3A; 3]>,
+    pub receivers: Vec<ReceiverMesh>,
+}
+
+/// Reads a file and builds the [`Scene`].
+pub fn load(path: &Path) -> Result<Scene> {
+    let doc = container::read_file(path)?;
+    Scene::from_document(doc)
+}
+
+fn node_local(node: &Value, what: &str) -> Result<DMat4> {
+    let nums = |key: &str, n: usize| -> Result<Option<Vec<f64>>> {
+        match node.get(key) {
+            None => Ok(None),
+            Some(v) => {
+                let a = v.as_array().filter(|a| a.len() == n).ok_or_else(|| {
+                    Error::Invalid(format!("{what}.{key} must be an array of {n} numbers"))
+                })?;
+                a.iter()
+                    .map(|x| {
+                        x.as_f64().ok_or_else(|| {
+                            Error::Invalid(format!("{what}.{key} must be an array of {n} numbers"))
+                        })
+                    })
+                    .collect::<Result<Vec<_>>>()
+                    .map(Some)
+            }
+        }
+    };
+    let m = if let Some(m) = nums("matrix", 16)? {
+        DMat4::from_cols_slice(&m)
+    } else {
+        let t = nums("translation", 3)?.map_or(DVec3::ZERO, |v| DVec3::new(v[0], v[1], v[2]));
+        let r = nums("rotation", 4)?.map_or(DQuat::IDENTITY, |v| {
+            DQuat::from_xyzw(v[0], v[1], v[2], v[3]).normalize()
+        });
+        let s = nums("scale", 3)?.map_or(DVec3::ONE, |v| DVec3::new(v[0], v[1], v[2]));
+        DMat4::from_scale_rotation_translation(s, r, t)
+    };
+    if !m.is_finite() {
+        return Err(Error::Invalid(format!("{what}: transform is not finite")));
+    }
+    Ok(m)
+}
+
+/// Expands a primitive's index list to a triangle list by mode.
+fn triangle_list(mode: u64, idx: &[u32]) -> Vec<u32> {
+    match mode {
+        4 => idx[..idx.len() - idx.len() % 3].to_vec(),
+        5 => (0..idx.len().saturating_sub(2))
+            .flat_map(|i| {
+                if i % 2 == 0 {
+                    [idx[i], idx[i + 1], idx[i + 2]]
+                } else {
+                    [idx[i], idx[i + 2], idx[i + 1]]
+                }
+            })
+            .collect(),
+        6 => (1..idx.len().saturating_sub(1))
+            .flat_map(|i| [idx[i], idx[i + 1], idx[0]])
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+impl Scene {
+    /// Decodes geometry and walks the default scene.
+    pub fn from_document(doc: Document) -> Result<Scene> {
+        let json = &doc.json;
+        for ext in array(json, "extensionsRequired") {
+            if let Some(name) = ext.as_str().filter(|n| COMPRESSION_EXTENSIONS.contains(n)) {
+                return Err(Error::Unsupported(format!(
+                    "extensionsRequired lists {name}: compressed geometry cannot be read; decompress it first (e.g. gltf-transform copy)"
+                )));
+            }
+        }
+        let nodes = array(json, "nodes");
+        let meshes = array(json, "meshes");
+        let roots: Vec<usize> = match json.get("scenes").and_then(Value::as_array) {
+            Some(scenes) if !scenes.is_empty() => {
+                let s = field_usize(json, "scene", "root")?.unwrap_or(0);
+                let scene = scenes
+                    .get(s)
+                    .ok_or_else(|| Error::Invalid(format!("scene {s} does not exist")))?;
+                let mut roots = Vec::new();
+                for v in array(scene, "nodes") {
+                    roots.push(v.as_u64().ok_or_else(|| {
+                        Error::Invalid(format!("scenes[{s}].nodes holds a non-index"))
+                    })? as usize);
+                }
+                roots
+            }
+            _ => {
+                let mut is_child = vec![false; nodes.len()];
+                for n in nodes {
+                    for c in array(n, "children") {
+                        if let Some(c) = c.as_u64().filter(|&c| (c as usize) < nodes.len()) {
+                            is_child[c as usize] = true;
+                        }
+                    }
+                }
+                (0..nodes.len()).filter(|&i| !is_child[i]).collect()
+            }
+        };
+
+        let mut scene = Scene {
+            doc: doc.clone(),
+            geometries: Vec::new(),
+            instances: Vec::new(),
+            warnings: Vec::new(),
+        };
+        let mut geometry_of: HashMap<(usize, usize), Option<usize>> = HashMap::new();
+        let mut visited = vec![false; nodes.len()];
+        let mut stack: Vec<(usize, DMat4)> = roots.iter().rev().map(|&r| (r, DMat4::IDENTITY)).collect();
+        let mut skipped_modes = 0usize;
+        let mut triangle_total = 0usize;
+        while let Some((ni, parent)) = stack.pop() {
+            let what = format!("nodes[{ni}]");
+            let node = nodes
+                .get(ni)
+                .ok_or_else(|| Error::Invalid(format!("{what} does not exist")))?;
+            if std::mem::replace(&mut visited[ni], true) {
+                return Err(Error::Invalid(format!(
+                    "{what} is reached twice: the node hierarchy has a cycle or a shared child"
+                )));
+            }
+            let world = parent * node_local(node, &what)?;
+            for c in array(node, "children").iter().rev() {
+                let c = c
+                    .as_u64()
+                    .ok_or_else(|| Error::Invalid(format!("{what}.children holds a non-index")))?;
+                stack.push((c as usize, world));
+            }
+            let Some(mi) = field_usize(node, "mesh", &what)? else {
+                continue;
+            };
+            let mesh = meshes
+                .get(mi)
+                .ok_or_else(|| Error::Invalid(format!("{what}.mesh {mi} does not exist")))?;
+            let skinned = node.get("skin").is_some();
+            let gpu = node.pointer("/extensions/EXT_mesh_gpu_instancing");
+            // The transform of a skinned node is ignored (glTF spec): rest pose.
+            let placements: Vec<DMat4> = match gpu {
+                Some(g) => gpu_instances(&doc, g, &what)?.into_iter().map(|m| world * m).collect(),
+                None if skinned => vec![DMat4::IDENTITY],
+                None => vec![world],
+            };
+            if skinned {
+                scene.warn(format!(
+                    "{what}: skinned mesh {mi} occludes in its rest pose but is not baked"
+                ));
+            }
+            if gpu.is_some() {
+                scene.warn(format!(
+                    "{what}: {} EXT_mesh_gpu_instancing copies of mesh {mi} occlude but are not baked",
+                    placements.len()
+                ));
+            }
+            for (pi, _) in array(mesh, "primitives").iter().enumerate() {
+                let g = match geometry_of.get(&(mi, pi)) {
+                    Some(g) => *g,
+                    None => {
+                        let g = scene.decode_primitive(mi, pi)?;
+                        if g.is_none() {
+                            skipped_modes += 1;
+                        }
+                        geometry_of.insert((mi, pi), g);
+                        g
+                    }
+                };
+                let Some(g) = g else { continue };
+                if scene.geometries[g].morphed && !skinned && gpu.is_none() {
+                    scene.warn(format!(
+                        "meshes[{mi}].primitives[{pi}]: morph targets; occludes in its base pose but is not baked"
+                    ));
+                }
+                let baked = !skinned && gpu.is_none() && !scene.geometries[g].morphed;
+                triangle_total += scene.geometries[g].triangles.len() / 3 * placements.len();
+                if triangle_total > MAX_TRIANGLES {
+                    return Err(Error::Limit(format!(
+                        "the scene has more than {MAX_TRIANGLES} triangles (all instances)"
+                    )));
+                }
+                for &transform in &placements {
+                    scene.instances.push(Instance {
+                        node: ni,
+                        geometry: g,
+                        transform,
+                        baked,
+                    });
+                }
+            }
+        }
+        if skipped_modes > 0 {
+            scene.warn(format!(
+                "{skipped_modes} point or line primitive(s) are neither baked nor occluders"
+            ));
+        }
+        Ok(scene)
+    }
+
+    fn warn(&mut self, line: String) {
+        if !self.warnings.contains(&line) {
+            self.warnings.push(line);
+        }
+    }
+
+    /// Decodes `meshes[mi].primitives[pi]`; `None` for points and lines.
+    fn decode_primitive(&mut self, mi: usize, pi: usize) -> Result<Option<usize>> {
+        let doc = &self.doc;
+        let what = format!("meshes[{mi}].primitives[{pi}]");
+        let prim = &array(&doc.json, "meshes")[mi]["primitives"][pi];
+        for ext in COMPRESSION_EXTENSIONS {
+            if prim.pointer(&format!("/extensions/{ext}")).is_some() {
+                return Err(Error::Unsupported(format!(
+                    "{what} uses {ext}: compressed geometry cannot be read; decompress it first (e.g. gltf-transform copy)"
+                )));
+            }
+        }
+        let mode = prim.get("mode").map_or(Some(4), Value::as_u64).unwrap_or(99);
+        if mode > 6 {
+            return Err(Error::Invalid(format!("{what}.mode is invalid")));
+        }
+        if mode < 4 {
+            return Ok(None);
+        }
+        let pos_acc = field_usize(&prim["attributes"], "POSITION", &what)?
+            .ok_or_else(|| Error::Invalid(format!("{what} has no POSITION attribute")))?;
+        let positions: Vec<[f32; 3]> = accessor::read(doc, pos_acc)?.to_f32::<3>(&what)?;
+        if let Some(v) = positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(Error::Invalid(format!(
+                "{what}: POSITION (accessors[{pos_acc}]) is not finite at vertex {v}"
+            )));
+        }
+        let normals = match field_usize(&prim["attributes"], "NORMAL", &what)? {
+            Some(n) => {
+                let n = accessor::read(doc, n)?.to_f32::<3>(&what)?;
+                (n.len() == positions.len()).then_some(n)
+            }
+            None => None,
+        };
+        let indices: Vec<u32> = match field_usize(prim, "indices", &what)? {
+            Some(i) => accessor::read(doc, i)?.to_indices(&what)?,
+            None => (0..positions.len() as u32).collect(),
+        };
+        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+            return Err(Error::Invalid(format!(
+                "{what}: index {bad} points past the {} vertices",
+                positions.len()
+            )));
+        }
+        let triangles = triangle_list(mode, &indices);
+        let morphed = prim.get("targets").and_then(Value::as_array).is_some_and(|t| !t.is_empty());
+        self.geometries.push(PrimitiveGeometry {
+            mesh: mi,
+            primitive: pi,
+            positions,
+            normals,
+            triangles,
+            morphed,
+        });
+        Ok(Some(self.geometries.len() - 1))
+    }
+
+    /// Number of placements that receive a lightmap.
+    pub fn baked_count(&self) -> usize {
+        self.instances.iter().filter(|i| i.baked).count()
+    }
+
+    /// World-space bounding box of all placed triangles' vertices.
+    pub fn world_bounds(&self) -> Option<(DVec3, DVec3)> {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for inst in &self.instances {
+            let g = &self.geometries[inst.geometry];
+            for &i in &g.triangles {
+                let p = inst.transform.transform_point3(DVec3::from(g.positions[i as usize].map(f64::from)));
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+        (lo.is_finite() && hi.is_finite()).then_some((lo, hi))
+    }
+
+    /// Maps every instance into bake space.
+    pub fn bake_geometry(&self) -> Result<BakeGeometry> {
+        let (lo, hi) = self
+            .world_bounds()
+            .ok_or_else(|| Error::Empty("the scene has no triangles".into()))?;
+        let diagonal = (hi - lo).length();
+        if !(diagonal > 0.0 && diagonal.is_finite()) {
+            return Err(Error::Empty(format!(
+                "the scene's triangles have no extent (bounding-box diagonal {diagonal})"
+            )));
+        }
+        let space = BakeSpace {
+            center: (lo + hi) * 0.5,
+            diagonal,
+        };
+        let mut occluders = Vec::new();
+        let mut receivers = Vec::new();
+        for (ii, inst) in self.instances.iter().enumerate() {
+            let g = &self.geometries[inst.geometry];
+            let positions: Vec<[f32; 3]> = g
+                .positions
+                .iter()
+                .map(|p| space.to_bake(inst.transform.transform_point3(DVec3::from(p.map(f64::from)))).to_array())
+                .collect();
+            for t in g.triangles.chunks_exact(3) {
+                let v = [0, 1, 2].map(|k| Vec3A::from(positions[t[k] as usize]));
+                if (v[1] - v[0]).cross(v[2] - v[0]).length_squared() > 0.0 {
+                    occluders.push(v);
+                }
+            }
+            if !inst.baked {
+                continue;
+            }
+            let linear = DMat3::from_mat4(inst.transform);
+            let normal_matrix = linear.inverse().transpose();
+            let normals = g.normals.as_ref().filter(|_| normal_matrix.is_finite()).map(|ns| {
+                ns.iter()
+                    .map(|n| {
+                        let w = (normal_matrix * DVec3::from(n.map(f64::from))).normalize_or_zero();
+                        w.as_vec3().to_array()
+                    })
+                    .collect()
+            });
+            receivers.push(ReceiverMesh {
+                instance: ii,
+                positions,
+                normals,
+                triangles: g.triangles.clone(),
+                mirrored: linear.determinant() < 0.0,
+            });
+        }
+        Ok(BakeGeometry {
+            space,
+            occluders,
+            receivers,
+        })
+    }
+}
+
+/// Per-instance transforms of an EXT_mesh_gpu_instancing node.
+fn gpu_instances(doc: &Document, ext: &Value, what: &str) -> Result<Vec<DMat4>> {
+    let attrs = &ext["attributes"];
+    let read = |key: &str| -> Result<Option<Vec<[f32; 4]>>> {
+        match field_usize(attrs, key, what)? {
+            None => Ok(None),
+            Some(a) => {
+                let acc = accessor::read(doc, a)?;
+                let dims = acc.dims;
+                let v = match dims {
+                    3 => acc.to_f32::<3>(what)?.into_iter().map(|v| [v[0], v[1], v[2], 0.0]).collect(),
+                    4 => acc.to_f32::<4>(what)?,
+                    _ => return Err(Error::Invalid(format!("{what}: EXT_mesh_gpu_instancing {key} has {dims} components"))),
+                };
+                Ok(Some(v))
+            }
+        }
+    };
+    let t = read("TRANSLATION")?;
+    let r = read("ROTATION")?;
+    let s = read("SCALE")?;
+    let n = [&t, &r, &s].iter().filter_map(|a| a.as_ref().map(Vec::len)).max().unwrap_or(0);
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let tr = t.as_ref().and_then(|v| v.get(i)).map_or(DVec3::ZERO, |v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+        let ro = r.as_ref().and_then(|v| v.get(i)).map_or(DQuat::IDENTITY, |v| {
+            DQuat::from_xyzw(v[0] as f64, v[1] as f64, v[2] as f64, v[3] as f64).normalize()
+        });
+        let sc = s.as_ref().and_then(|v| v.get(i)).map_or(DVec3::ONE, |v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+        let m = DMat4::from_scale_rotation_translation(sc, ro, tr);
+        if !m.is_finite() {
+            return Err(Error::Invalid(format!("{what}: EXT_mesh_gpu_instancing instance {i} is not finite")));
+        }
+        out.push(m);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans_expand_with_gltf_winding() {
+        assert_eq!(triangle_list(5, &[0, 1, 2, 3]), vec![0, 1, 2, 1, 3, 2]);
+        assert_eq!(triangle_list(6, &[0, 1, 2, 3]), vec![1, 2, 0, 2, 3, 0]);
+        assert_eq!(triangle_list(4, &[0, 1, 2, 3]), vec![0, 1, 2]);
+        assert!(triangle_list(5, &[0, 1]).is_empty());
+    }
+}

@@ -1,0 +1,124 @@
+//! The `aobake` command line.
+
+use aobake::pipeline::{self, Method, Settings};
+use aobake::unwrap::AtlasSize;
+use aobake::write::OcclusionMode;
+use clap::{Parser, ValueEnum};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum MethodArg {
+    /// Brute-force Monte Carlo.
+    Mc,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum OcclusionArg {
+    /// Keep a material's existing occlusionTexture.
+    Keep,
+    /// Replace it with the baked AO.
+    Replace,
+}
+
+/// Bake ambient occlusion and SH9 directional occlusion lightmaps into a glTF file.
+#[derive(Parser, Debug)]
+#[command(name = "aobake", version, about)]
+struct Cli {
+    /// Input .glb or .gltf.
+    input: PathBuf,
+    /// Output .glb (written atomically; never the input).
+    output: PathBuf,
+    /// Atlas page edge in texels (the densest fit on one page).
+    #[arg(long, default_value_t = 1024, conflicts_with = "texel_density")]
+    resolution: u32,
+    /// Texels per world unit instead of a fixed page size.
+    #[arg(long)]
+    texel_density: Option<f64>,
+    /// Rays per texel.
+    #[arg(long, default_value_t = 256)]
+    rays: u32,
+    /// Max occluder distance in world units [default: 0.1 x scene diagonal].
+    #[arg(long)]
+    max_distance: Option<f64>,
+    /// Baking method.
+    #[arg(long, value_enum, default_value_t = MethodArg::Mc)]
+    method: MethodArg,
+    /// Random seed (same seed, same output, any thread count).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Empty texels around each chart.
+    #[arg(long, default_value_t = 2)]
+    padding: u32,
+    /// What to do with materials that already have an occlusionTexture.
+    #[arg(long, value_enum, default_value_t = OcclusionArg::Keep)]
+    occlusion: OcclusionArg,
+    /// Also write float EXR lightmaps into this directory.
+    #[arg(long)]
+    exr: Option<PathBuf>,
+    /// Write a JSON report (stage times, texels, rays/s) to this file.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Worker threads [default: all cores].
+    #[arg(long)]
+    threads: Option<usize>,
+    /// No progress bars and no warnings.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(&cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("aobake: error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: &Cli) -> anyhow::Result<()> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+    }
+    let settings = Settings {
+        size: match cli.texel_density {
+            Some(t) => AtlasSize::TexelDensity(t),
+            None => AtlasSize::Resolution(cli.resolution),
+        },
+        padding: cli.padding,
+        method: match cli.method {
+            MethodArg::Mc => Method::Mc,
+        },
+        rays: cli.rays,
+        max_distance: cli.max_distance,
+        seed: cli.seed,
+        occlusion: match cli.occlusion {
+            OcclusionArg::Keep => OcclusionMode::Keep,
+            OcclusionArg::Replace => OcclusionMode::Replace,
+        },
+        exr_dir: cli.exr.clone(),
+        progress: !cli.quiet,
+    };
+    let report = pipeline::run(&cli.input, &cli.output, &settings)?;
+    if !cli.quiet {
+        for w in &report.warnings {
+            eprintln!("aobake: warning: {w}");
+        }
+        eprintln!(
+            "aobake: baked {} texels ({}x{} atlas) with {} rays in {:.2} s ({:.2} Mrays/s)",
+            report.texels,
+            report.atlas_width,
+            report.atlas_height,
+            report.rays_cast,
+            report.total_seconds,
+            report.rays_per_second / 1e6
+        );
+    }
+    if let Some(path) = &cli.report {
+        let text = serde_json::to_vec_pretty(&report)?;
+        aobake::write::write_atomic(path, &text)?;
+    }
+    Ok(())
+}

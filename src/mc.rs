@@ -1,0 +1,82 @@
+//! The brute-force Monte Carlo baker (`--method mc`): the reference method.
+//!
+//! In: [`Receivers`], a [`Tracer`], ray count, max distance, seed. Out: a
+//! [`Bake`]: per receiver AO = (1/pi) Int V max(0, n.w) dw and the 9 SH
+//! coefficients (1/pi) Int V max(0, n.w) Y_i(w) dw, estimated with
+//! stratified cosine-weighted directions (so each ray contributes V and
+//! V Y_i(w) with equal weight). Every receiver draws from its own scrambled
+//! sequence, so results do not depend on thread count.
+
+use crate::rasterize::Receivers;
+use crate::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};
+use crate::sh::{self, SH_COUNT};
+use crate::trace::{Tracer, offset_origin};
+use rayon::prelude::*;
+
+/// Per-receiver bake result.
+#[derive(Clone, Debug, Default)]
+pub struct Bake {
+    pub ao: Vec<f32>,
+    pub sh: Vec<[f32; SH_COUNT]>,
+    /// Rays cast.
+    pub rays: u64,
+}
+
+/// Monte Carlo settings.
+#[derive(Clone, Copy, Debug)]
+pub struct McSettings {
+    pub rays: u32,
+    /// Max occluder distance, bake units.
+    pub max_distance: f32,
+    pub seed: u64,
+}
+
+/// Receivers per parallel work item.
+const CHUNK: usize = 64;
+
+/// Bakes every receiver by Monte Carlo. `progress` is called with the
+/// number of receivers finished since its last call.
+pub fn bake(receivers: &Receivers, tracer: &Tracer, s: &McSettings, progress: &(dyn Fn(u64) + Sync)) -> Bake {
+    let n = receivers.len();
+    let mut ao = vec![0.0f32; n];
+    let mut shv = vec![[0.0f32; SH_COUNT]; n];
+    ao.par_chunks_mut(CHUNK)
+        .zip(shv.par_chunks_mut(CHUNK))
+        .enumerate()
+        .for_each(|(c, (ao, shv))| {
+            for k in 0..ao.len() {
+                let r = c * CHUNK + k;
+                let (a, coeffs) = integrate_receiver(receivers, r, tracer, s);
+                ao[k] = a;
+                shv[k] = coeffs;
+            }
+            progress(ao.len() as u64);
+        });
+    Bake {
+        ao,
+        sh: shv,
+        rays: n as u64 * s.rays as u64,
+    }
+}
+
+/// Estimates AO and SH of receiver `r` with `s.rays` rays.
+pub fn integrate_receiver(receivers: &Receivers, r: usize, tracer: &Tracer, s: &McSettings) -> (f32, [f32; SH_COUNT]) {
+    let n = receivers.normal[r];
+    let frame = Frame::from_normal(n);
+    let origin = offset_origin(receivers.position[r], receivers.geo_normal[r], receivers.footprint[r]);
+    let seed = receiver_seed(s.seed, receivers.texel[r] as u64, 0);
+    let mut visible = 0u32;
+    let mut acc = [0.0f32; SH_COUNT];
+    for i in 0..s.rays {
+        let dir = frame.to_world(cosine_hemisphere(sobol_2d(i, seed))).normalize();
+        if !tracer.occluded(origin, dir, s.max_distance) {
+            visible += 1;
+            let y = sh::basis(dir);
+            for k in 0..SH_COUNT {
+                acc[k] += y[k];
+            }
+        }
+    }
+    let inv = 1.0 / s.rays.max(1) as f32;
+    (visible as f32 * inv, acc.map(|v| v * inv))
+}

@@ -1,0 +1,266 @@
+//! The pipeline: load -> unwrap -> rasterize -> trace -> bake -> dilate ->
+//! encode -> write, with per-stage wall times and progress bars.
+//!
+//! In: a loaded [`Scene`] and [`Settings`]. Out: a [`Baked`] holding every
+//! intermediate (for tests and reports) and the output GLB bytes.
+
+use crate::dilate;
+use crate::encode::{self, Encoded, Lightmap};
+use crate::error::{Error, Result};
+use crate::load::{self, BakeGeometry, Scene};
+use crate::mc::{self, Bake, McSettings};
+use crate::rasterize::{self, Receivers};
+use crate::trace::Tracer;
+use crate::unwrap::{self, Atlas, AtlasSize, UnwrapOptions};
+use crate::write::{self, BakeRecord, OcclusionMode};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Default max occluder distance as a fraction of the scene's bounding-box diagonal.
+pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
+
+/// Baking method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Brute-force Monte Carlo.
+    Mc,
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Mc => "mc",
+        }
+    }
+}
+
+/// Everything a bake can be told.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub size: AtlasSize,
+    pub padding: u32,
+    pub method: Method,
+    pub rays: u32,
+    /// World units; `None`: [`DEFAULT_MAX_DISTANCE_FRACTION`] of the diagonal.
+    pub max_distance: Option<f64>,
+    pub seed: u64,
+    pub occlusion: OcclusionMode,
+    pub exr_dir: Option<PathBuf>,
+    /// Show progress bars (only drawn when stderr is a terminal).
+    pub progress: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            size: AtlasSize::Resolution(1024),
+            padding: 2,
+            method: Method::Mc,
+            rays: 256,
+            max_distance: None,
+            seed: 0,
+            occlusion: OcclusionMode::Keep,
+            exr_dir: None,
+            progress: true,
+        }
+    }
+}
+
+/// Wall time of one stage.
+#[derive(Clone, Debug, Serialize)]
+pub struct StageTime {
+    pub stage: &'static str,
+    pub seconds: f64,
+}
+
+/// The `--report` JSON.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub input: String,
+    pub method: Method,
+    pub atlas_width: u32,
+    pub atlas_height: u32,
+    pub charts: u32,
+    pub utilization: f32,
+    pub texels: usize,
+    pub baked_primitives: usize,
+    pub occluder_triangles: usize,
+    pub rays_per_texel: u32,
+    pub rays_cast: u64,
+    pub rays_per_second: f64,
+    pub max_distance: f64,
+    pub seed: u64,
+    pub threads: usize,
+    pub stages: Vec<StageTime>,
+    pub total_seconds: f64,
+    pub warnings: Vec<String>,
+}
+
+/// Every product of a bake.
+pub struct Baked {
+    pub geometry: BakeGeometry,
+    pub atlas: Atlas,
+    pub receivers: Receivers,
+    pub bake: Bake,
+    pub lightmap: Lightmap,
+    pub encoded: Encoded,
+    pub glb: Vec<u8>,
+    pub report: Report,
+}
+
+struct Timer {
+    stages: Vec<StageTime>,
+    last: Instant,
+    start: Instant,
+}
+
+impl Timer {
+    fn new() -> Timer {
+        let now = Instant::now();
+        Timer { stages: Vec::new(), last: now, start: now }
+    }
+    fn lap(&mut self, stage: &'static str) {
+        let now = Instant::now();
+        self.stages.push(StageTime { stage, seconds: (now - self.last).as_secs_f64() });
+        self.last = now;
+    }
+    fn seconds(&self, stage: &str) -> f64 {
+        self.stages.iter().filter(|s| s.stage == stage).map(|s| s.seconds).sum()
+    }
+}
+
+fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
+    let pb = ProgressBar::with_draw_target(
+        Some(len),
+        if show && std::io::stderr().is_terminal() { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() },
+    );
+    pb.set_style(
+        ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} texels, {per_sec}, eta {eta}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    pb.set_message(msg);
+    pb
+}
+
+/// Loads `input` and bakes it.
+pub fn bake_file(input: &Path, settings: &Settings) -> Result<Baked> {
+    let start = Instant::now();
+    let scene = load::load(input)?;
+    let load_seconds = start.elapsed().as_secs_f64();
+    let mut baked = bake_scene(&scene, settings)?;
+    baked.report.input = input.display().to_string();
+    baked.report.stages.insert(0, StageTime { stage: "load", seconds: load_seconds });
+    baked.report.total_seconds += load_seconds;
+    Ok(baked)
+}
+
+/// Bakes a loaded scene into lightmaps and the output GLB bytes.
+pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
+    if s.rays == 0 {
+        return Err(Error::Option("--rays must be at least 1".into()));
+    }
+    if scene.baked_count() == 0 {
+        return Err(Error::Empty("no triangle primitive to bake in the default scene".into()));
+    }
+    let mut t = Timer::new();
+    let geometry = scene.bake_geometry()?;
+    let diagonal = geometry.space.diagonal;
+    let max_distance_world = match s.max_distance {
+        Some(d) if d.is_finite() && d > 0.0 => d,
+        Some(d) => return Err(Error::Option(format!("--max-distance {d} must be finite and > 0"))),
+        None => DEFAULT_MAX_DISTANCE_FRACTION * diagonal,
+    };
+    t.lap("prepare");
+    let atlas = unwrap::unwrap(&geometry.receivers, &UnwrapOptions { size: s.size, padding: s.padding }, diagonal)?;
+    t.lap("unwrap");
+    let receivers = rasterize::rasterize(&geometry.receivers, &atlas);
+    if receivers.is_empty() {
+        return Err(Error::Empty("no texel is covered: every baked triangle is degenerate".into()));
+    }
+    t.lap("rasterize");
+    let tracer = Tracer::new(&geometry.occluders);
+    t.lap("bvh");
+    let mc_settings = McSettings {
+        rays: s.rays,
+        max_distance: (max_distance_world / diagonal).min(f32::MAX as f64) as f32,
+        seed: s.seed,
+    };
+    let pb = bar(s.progress, receivers.len() as u64, "baking");
+    let bake = match s.method {
+        Method::Mc => mc::bake(&receivers, &tracer, &mc_settings, &|n| pb.inc(n)),
+    };
+    pb.finish_and_clear();
+    t.lap("trace");
+    let fill = dilate::nearest_receiver(receivers.width, receivers.height, &receivers.texel);
+    let lightmap = encode::lightmap(&receivers, &bake, &fill)?;
+    t.lap("dilate");
+    let encoded = encode::encode(&lightmap)?;
+    if let Some(dir) = &s.exr_dir {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        encode::write_exr(&lightmap, &dir.join("lightmap.exr"))?;
+    }
+    t.lap("encode");
+    let record = BakeRecord {
+        method: s.method.name().to_string(),
+        rays: s.rays,
+        seed: s.seed,
+        max_distance: max_distance_world,
+        width: atlas.width,
+        height: atlas.height,
+    };
+    let glb = write::build_glb(scene, &geometry, &atlas, &encoded, &record, s.occlusion)?;
+    t.lap("write");
+    let trace_s = t.seconds("trace");
+    let report = Report {
+        input: String::new(),
+        method: s.method,
+        atlas_width: atlas.width,
+        atlas_height: atlas.height,
+        charts: atlas.charts,
+        utilization: atlas.utilization,
+        texels: receivers.len(),
+        baked_primitives: geometry.receivers.len(),
+        occluder_triangles: tracer.triangle_count(),
+        rays_per_texel: s.rays,
+        rays_cast: bake.rays,
+        rays_per_second: if trace_s > 0.0 { bake.rays as f64 / trace_s } else { 0.0 },
+        max_distance: max_distance_world,
+        seed: s.seed,
+        threads: rayon::current_num_threads(),
+        total_seconds: t.start.elapsed().as_secs_f64(),
+        stages: t.stages,
+        warnings: scene.warnings.clone(),
+    };
+    Ok(Baked { geometry, atlas, receivers, bake, lightmap, encoded, glb, report })
+}
+
+/// Whether two paths name the same file (the second may not exist yet).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// Bakes `input` into `output` (written atomically; `input` is never touched).
+pub fn run(input: &Path, output: &Path, settings: &Settings) -> Result<Report> {
+    if same_file(input, output) {
+        return Err(Error::Option(format!(
+            "output {} is the input file; choose another path (the input is never overwritten)",
+            output.display()
+        )));
+    }
+    let baked = bake_file(input, settings)?;
+    let t = Instant::now();
+    write::write_atomic(output, &baked.glb)?;
+    let mut report = baked.report;
+    let secs = t.elapsed().as_secs_f64();
+    report.stages.push(StageTime { stage: "save", seconds: secs });
+    report.total_seconds += secs;
+    Ok(report)
+}

@@ -1,0 +1,258 @@
+//! Rasterize: atlas texels into receiver points.
+//!
+//! In: the [`ReceiverMesh`]es and their [`Atlas`] charts. Out: [`Receivers`],
+//! one per covered texel, in row-major texel order (SoA): bake-space
+//! position, shading normal, geometric normal, footprint (the world size of a
+//! texel there, the paper's shading diameter, in bake units).
+//!
+//! Coverage is conservative: a texel whose centre lies in no triangle but
+//! whose square touches one (centre within half a texel diagonal) still gets
+//! a point, the closest point of that triangle, so chart edges never go
+//! black. A texel whose centre lies inside a triangle always takes that one.
+
+use crate::load::ReceiverMesh;
+use crate::unwrap::Atlas;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Half the diagonal of a texel: the reach of conservative coverage.
+const CONSERVATIVE_REACH: f32 = std::f32::consts::FRAC_1_SQRT_2 + 1e-4;
+/// Rows per band of the binned rasterizer.
+const BAND_ROWS: u32 = 8;
+
+/// Receiver points, one per covered texel (structure of arrays).
+#[derive(Clone, Debug, Default)]
+pub struct Receivers {
+    pub width: u32,
+    pub height: u32,
+    /// Texel index `y * width + x`.
+    pub texel: Vec<u32>,
+    pub position: Vec<Vec3>,
+    /// Unit shading normal n (interpolated, or geometric if absent).
+    pub normal: Vec<Vec3>,
+    /// Unit geometric normal, on the side of `normal`.
+    pub geo_normal: Vec<Vec3>,
+    /// Texel edge length at the receiver, bake units.
+    pub footprint: Vec<f32>,
+}
+
+impl Receivers {
+    pub fn len(&self) -> usize {
+        self.texel.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.texel.is_empty()
+    }
+}
+
+/// A triangle ready to rasterize.
+struct RasterTri {
+    uv: [Vec2; 3],
+    pos: [Vec3; 3],
+    nrm: Option<[Vec3; 3]>,
+    geo: Vec3,
+    footprint: f32,
+}
+
+/// Closest point of triangle abc to p in 2D: (barycentrics, squared distance).
+pub fn closest_point_barycentric(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> ([f32; 3], f32) {
+    // Ericson, Real-Time Collision Detection, 5.1.5.
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    let bary = if d1 <= 0.0 && d2 <= 0.0 {
+        [1.0, 0.0, 0.0]
+    } else {
+        let bp = p - b;
+        let d3 = ab.dot(bp);
+        let d4 = ac.dot(bp);
+        if d3 >= 0.0 && d4 <= d3 {
+            [0.0, 1.0, 0.0]
+        } else {
+            let vc = d1 * d4 - d3 * d2;
+            if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+                let v = d1 / (d1 - d3);
+                [1.0 - v, v, 0.0]
+            } else {
+                let cp = p - c;
+                let d5 = ab.dot(cp);
+                let d6 = ac.dot(cp);
+                if d6 >= 0.0 && d5 <= d6 {
+                    [0.0, 0.0, 1.0]
+                } else {
+                    let vb = d5 * d2 - d1 * d6;
+                    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+                        let w = d2 / (d2 - d6);
+                        [1.0 - w, 0.0, w]
+                    } else {
+                        let va = d3 * d6 - d5 * d4;
+                        if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+                            let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+                            [0.0, 1.0 - w, w]
+                        } else {
+                            let denom = 1.0 / (va + vb + vc);
+                            let v = vb * denom;
+                            let w = vc * denom;
+                            [1.0 - v - w, v, w]
+                        }
+                    }
+                }
+            }
+        }
+    };
+    let q = a * bary[0] + b * bary[1] + c * bary[2];
+    (bary, (q - p).length_squared())
+}
+
+/// Whether p is inside (or on) triangle abc, by edge functions of either winding.
+fn inside(p: Vec2, t: &[Vec2; 3]) -> bool {
+    let e = |a: Vec2, b: Vec2| (b - a).perp_dot(p - a);
+    let (e0, e1, e2) = (e(t[0], t[1]), e(t[1], t[2]), e(t[2], t[0]));
+    (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
+}
+
+fn build_triangles(meshes: &[ReceiverMesh], atlas: &Atlas) -> Vec<RasterTri> {
+    let (w, h) = (atlas.width as f32, atlas.height as f32);
+    let mut tris = Vec::new();
+    for (m, c) in meshes.iter().zip(&atlas.meshes) {
+        for t in c.triangles.chunks_exact(3) {
+            let uv = [0, 1, 2].map(|k| {
+                let u = c.uv[t[k] as usize];
+                Vec2::new(u[0] * w, u[1] * h)
+            });
+            let src = [0, 1, 2].map(|k| c.xref[t[k] as usize] as usize);
+            let pos = src.map(|i| Vec3::from(m.positions[i]));
+            let cross = (pos[1] - pos[0]).cross(pos[2] - pos[0]);
+            let area3 = 0.5 * cross.length();
+            let area_uv = 0.5 * (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]).abs();
+            // Zero-area triangles (in space or in UV) cover nothing.
+            if !(area3 > 0.0 && area_uv > 1e-12 && area3.is_finite()) {
+                continue;
+            }
+            let mut geo = cross / (2.0 * area3);
+            if m.mirrored {
+                geo = -geo;
+            }
+            let nrm = m.normals.as_ref().map(|n| src.map(|i| Vec3::from(n[i])));
+            tris.push(RasterTri {
+                uv,
+                pos,
+                nrm,
+                geo,
+                footprint: (area3 / area_uv).sqrt(),
+            });
+        }
+    }
+    tris
+}
+
+/// Finds the receiver points of every covered texel.
+pub fn rasterize(meshes: &[ReceiverMesh], atlas: &Atlas) -> Receivers {
+    let tris = build_triangles(meshes, atlas);
+    let (w, h) = (atlas.width, atlas.height);
+    let bands = h.div_ceil(BAND_ROWS) as usize;
+    // Bin triangles by band of rows (ascending triangle order inside a band).
+    let mut binned: Vec<Vec<u32>> = vec![Vec::new(); bands];
+    for (i, t) in tris.iter().enumerate() {
+        let lo = t.uv.iter().fold(f32::INFINITY, |a, p| a.min(p.y)) - CONSERVATIVE_REACH;
+        let hi = t.uv.iter().fold(f32::NEG_INFINITY, |a, p| a.max(p.y)) + CONSERVATIVE_REACH;
+        let y0 = (lo.floor().max(0.0) as u32).min(h - 1);
+        let y1 = (hi.ceil().max(0.0) as u32).min(h - 1);
+        for b in (y0 / BAND_ROWS)..=(y1 / BAND_ROWS) {
+            binned[b as usize].push(i as u32);
+        }
+    }
+    let per_band: Vec<Receivers> = binned
+        .par_iter()
+        .enumerate()
+        .map(|(b, list)| rasterize_band(&tris, list, b as u32, w, h))
+        .collect();
+    let mut out = Receivers {
+        width: w,
+        height: h,
+        ..Default::default()
+    };
+    for r in per_band {
+        out.texel.extend(r.texel);
+        out.position.extend(r.position);
+        out.normal.extend(r.normal);
+        out.geo_normal.extend(r.geo_normal);
+        out.footprint.extend(r.footprint);
+    }
+    out
+}
+
+fn rasterize_band(tris: &[RasterTri], list: &[u32], band: u32, w: u32, h: u32) -> Receivers {
+    let y0 = band * BAND_ROWS;
+    let y1 = (y0 + BAND_ROWS).min(h);
+    let rows = (y1 - y0) as usize;
+    // Best candidate per texel of the band: (squared distance, triangle, barycentrics).
+    let mut best: Vec<(f32, u32, [f32; 3])> = vec![(f32::INFINITY, u32::MAX, [0.0; 3]); rows * w as usize];
+    let reach2 = CONSERVATIVE_REACH * CONSERVATIVE_REACH;
+    for &ti in list {
+        let t = &tris[ti as usize];
+        let lo = t.uv.iter().fold(Vec2::INFINITY, |a, &p| a.min(p)) - CONSERVATIVE_REACH;
+        let hi = t.uv.iter().fold(Vec2::NEG_INFINITY, |a, &p| a.max(p)) + CONSERVATIVE_REACH;
+        let xa = (lo.x.floor().max(0.0) as u32).min(w - 1);
+        let xb = (hi.x.ceil().max(0.0) as u32).min(w - 1);
+        let ya = (lo.y.floor().max(y0 as f32) as u32).clamp(y0, y1 - 1);
+        let yb = (hi.y.ceil().max(0.0) as u32).clamp(y0, y1 - 1);
+        for y in ya..=yb {
+            for x in xa..=xb {
+                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let (bary, d2) = if inside(p, &t.uv) {
+                    let (b, _) = closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2]);
+                    (b, 0.0)
+                } else {
+                    closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2])
+                };
+                let slot = &mut best[(y - y0) as usize * w as usize + x as usize];
+                if d2 <= reach2 && d2 < slot.0 {
+                    *slot = (d2, ti, bary);
+                }
+            }
+        }
+    }
+    let mut out = Receivers::default();
+    for (i, &(d2, ti, b)) in best.iter().enumerate() {
+        if !d2.is_finite() {
+            continue;
+        }
+        let t = &tris[ti as usize];
+        let pos = t.pos[0] * b[0] + t.pos[1] * b[1] + t.pos[2] * b[2];
+        let n = t
+            .nrm
+            .map(|n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or_zero())
+            .filter(|n| n.length_squared() > 0.5)
+            .unwrap_or(t.geo);
+        let geo = if t.geo.dot(n) < 0.0 { -t.geo } else { t.geo };
+        let (x, y) = (i % w as usize, i / w as usize + y0 as usize);
+        out.texel.push((y * w as usize + x) as u32);
+        out.position.push(pos);
+        out.normal.push(n);
+        out.geo_normal.push(geo);
+        out.footprint.push(t.footprint);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closest_point_inside_edge_and_vertex() {
+        let (a, b, c) = (Vec2::ZERO, Vec2::new(4.0, 0.0), Vec2::new(0.0, 4.0));
+        let (bary, d2) = closest_point_barycentric(Vec2::new(1.0, 1.0), a, b, c);
+        assert!(d2 < 1e-12);
+        assert!((bary[1] - 0.25).abs() < 1e-6 && (bary[2] - 0.25).abs() < 1e-6);
+        let (bary, d2) = closest_point_barycentric(Vec2::new(2.0, -1.0), a, b, c);
+        assert!((d2 - 1.0).abs() < 1e-6 && (bary[1] - 0.5).abs() < 1e-6);
+        let (bary, d2) = closest_point_barycentric(Vec2::new(-1.0, -1.0), a, b, c);
+        assert!((d2 - 2.0).abs() < 1e-6 && bary == [1.0, 0.0, 0.0]);
+        let (_, d2) = closest_point_barycentric(Vec2::new(3.0, 3.0), a, b, c);
+        assert!((d2 - 2.0).abs() < 1e-5);
+    }
+}

@@ -1,0 +1,88 @@
+//! Real orthonormal spherical harmonics up to l = 2 (9 coefficients), in the
+//! output contract's order (l,m) = (0,0),(1,-1),(1,0),(1,1),(2,-2),(2,-1),
+//! (2,0),(2,1),(2,2), without the Condon-Shortley phase.
+//!
+//! In: a unit world-space direction. Out: the 9 basis values. Also the
+//! clamped-cosine band factors A_l used for open hemispheres.
+
+use glam::Vec3;
+
+/// Number of SH coefficients (order 3, bands 0..=2).
+pub const SH_COUNT: usize = 9;
+
+/// Band l of coefficient i.
+pub const BAND: [usize; SH_COUNT] = [0, 1, 1, 1, 2, 2, 2, 2, 2];
+
+/// The 9 basis functions Y_i(w) for a unit direction w = (x, y, z).
+#[inline]
+pub fn basis(w: Vec3) -> [f32; SH_COUNT] {
+    let (x, y, z) = (w.x, w.y, w.z);
+    [
+        0.282_094_8,
+        0.488_602_5 * y,
+        0.488_602_5 * z,
+        0.488_602_5 * x,
+        1.092_548_4 * x * y,
+        1.092_548_4 * y * z,
+        0.315_391_57 * (3.0 * z * z - 1.0),
+        1.092_548_4 * x * z,
+        0.546_274_2 * (x * x - y * y),
+    ]
+}
+
+/// Clamped-cosine convolution factors A_l (Ramamoorthi-Hanrahan):
+/// A_0 = pi, A_1 = 2pi/3, A_2 = pi/4.
+pub const CLAMPED_COSINE_BAND: [f32; 3] = [
+    std::f32::consts::PI,
+    2.0 * std::f32::consts::PI / 3.0,
+    std::f32::consts::FRAC_PI_4,
+];
+
+/// Coefficients of an unoccluded receiver with normal n:
+/// c_i = (A_l / pi) Y_i(n).
+#[inline]
+pub fn open_hemisphere(n: Vec3) -> [f32; SH_COUNT] {
+    let y = basis(n);
+    std::array::from_fn(|i| CLAMPED_COSINE_BAND[BAND[i]] / std::f32::consts::PI * y[i])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Integrates f over the sphere by a fine latitude-longitude quadrature.
+    fn integrate(f: impl Fn(Vec3) -> f64) -> f64 {
+        let (nt, np) = (400, 800);
+        let mut s = 0.0;
+        for i in 0..nt {
+            let theta = (i as f64 + 0.5) / nt as f64 * std::f64::consts::PI;
+            for j in 0..np {
+                let phi = (j as f64 + 0.5) / np as f64 * 2.0 * std::f64::consts::PI;
+                let w = Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
+                s += f(w) * theta.sin();
+            }
+        }
+        s * (std::f64::consts::PI / nt as f64) * (2.0 * std::f64::consts::PI / np as f64)
+    }
+
+    #[test]
+    fn basis_is_orthonormal() {
+        for i in 0..SH_COUNT {
+            for j in 0..SH_COUNT {
+                let v = integrate(|w| basis(w)[i] as f64 * basis(w)[j] as f64);
+                let want = if i == j { 1.0 } else { 0.0 };
+                assert!((v - want).abs() < 2e-3, "<Y{i},Y{j}> = {v}");
+            }
+        }
+    }
+
+    #[test]
+    fn open_hemisphere_matches_numeric_projection() {
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let c = open_hemisphere(n);
+        for i in 0..SH_COUNT {
+            let v = integrate(|w| (n.dot(w).max(0.0) * basis(w)[i]) as f64) / std::f64::consts::PI;
+            assert!((v - c[i] as f64).abs() < 2e-3, "c{i}: {v} vs {}", c[i]);
+        }
+    }
+}

@@ -1,0 +1,114 @@
+//! Unwrap: every baked placement into one lightmap atlas page.
+//!
+//! In: the [`ReceiverMesh`]es (bake space) and an [`AtlasSize`]. Out: an
+//! [`Atlas`]: page size and, per receiver mesh, the new vertices (`xref` into
+//! the input vertices, `uv` in `[0,1]` with (0,0) at the image's top-left)
+//! and the same triangles re-indexed. Backed by the pure-Rust `uvunwrap`
+//! crate; the rest of the pipeline sees only these types, so a backend can be
+//! swapped.
+
+use crate::error::{Error, Result};
+use crate::load::ReceiverMesh;
+
+/// Largest atlas edge in texels (a 16k x 16k page with SH is ~6 GiB of floats).
+pub const MAX_ATLAS_EDGE: u32 = 16384;
+
+/// How the atlas is sized.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AtlasSize {
+    /// The highest density at which everything fits one page of this edge.
+    Resolution(u32),
+    /// Texels per world unit; the page grows to fit.
+    TexelDensity(f64),
+}
+
+/// Unwrap options.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UnwrapOptions {
+    pub size: AtlasSize,
+    /// Empty texels around each chart (charts are `2 * padding` apart).
+    pub padding: u32,
+}
+
+/// One receiver mesh in the atlas.
+#[derive(Clone, Debug, Default)]
+pub struct ChartedMesh {
+    /// Input vertex of each new vertex.
+    pub xref: Vec<u32>,
+    /// Atlas coordinate of each new vertex.
+    pub uv: Vec<[f32; 2]>,
+    /// Triangle list over the new vertices, same order as the input.
+    pub triangles: Vec<u32>,
+}
+
+/// A single-page lightmap atlas.
+#[derive(Clone, Debug)]
+pub struct Atlas {
+    pub width: u32,
+    pub height: u32,
+    pub charts: u32,
+    pub utilization: f32,
+    pub meshes: Vec<ChartedMesh>,
+}
+
+/// Unwraps all receiver meshes into one page. `diagonal` converts a world
+/// texel density into bake space.
+pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -> Result<Atlas> {
+    let density = match options.size {
+        AtlasSize::Resolution(r) => {
+            if !(16..=MAX_ATLAS_EDGE).contains(&r) {
+                return Err(Error::Option(format!(
+                    "--resolution {r} is outside 16..={MAX_ATLAS_EDGE}"
+                )));
+            }
+            uvunwrap::Density::Auto { page_size: r }
+        }
+        AtlasSize::TexelDensity(t) => {
+            let tpu = t * diagonal;
+            if !(tpu.is_finite() && tpu > 0.0) {
+                return Err(Error::Option(format!("--texel-density {t} must be finite and > 0")));
+            }
+            uvunwrap::Density::Fixed {
+                texels_per_unit: tpu as f32,
+                page_size: None,
+            }
+        }
+    };
+    let inputs: Vec<uvunwrap::MeshInput> = meshes
+        .iter()
+        .map(|m| uvunwrap::MeshInput::new(&m.positions, &m.triangles))
+        .collect();
+    let opts = uvunwrap::Options {
+        density,
+        padding: options.padding,
+        ..Default::default()
+    };
+    let atlas = uvunwrap::generate(&inputs, &opts).map_err(|e| Error::Unwrap(e.to_string()))?;
+    if atlas.page_count > 1 {
+        return Err(Error::Limit(format!(
+            "the charts need {} atlas pages; raise --resolution or lower --texel-density",
+            atlas.page_count
+        )));
+    }
+    if atlas.width > MAX_ATLAS_EDGE || atlas.height > MAX_ATLAS_EDGE {
+        return Err(Error::Limit(format!(
+            "the atlas would be {}x{} texels, more than the {MAX_ATLAS_EDGE} limit; lower --texel-density",
+            atlas.width, atlas.height
+        )));
+    }
+    Ok(Atlas {
+        width: atlas.width.max(1),
+        height: atlas.height.max(1),
+        charts: atlas.chart_count,
+        utilization: atlas.utilization,
+        meshes: atlas
+            .meshes
+            .into_iter()
+            .map(|m| ChartedMesh {
+                xref: m.vertices.iter().map(|v| v.xref).collect(),
+                uv: m.vertices.iter().map(|v| v.uv).collect(),
+                triangles: m.indices,
+            })
+            .collect(),
+    })
+}

@@ -1,0 +1,442 @@
+//! Write: the input document plus the bake, as a GLB, atomically.
+//!
+//! In: the loaded [`Scene`], its [`BakeGeometry`] and [`Atlas`], and the
+//! [`Encoded`] images. Out: GLB bytes, then a file written through a
+//! temporary file and a rename. The document is edited as
+//! `serde_json::Value`, so every field of the input survives except the
+//! documented edits:
+//! - each baked primitive: attributes re-indexed through the unwrapper's
+//!   vertex map into new accessors, a new `TEXCOORD_n` (n = lowest free
+//!   index), new triangle-list indices (`mode` 4), and
+//!   `extensions.AOBAKE_lightmap`;
+//! - a mesh placed by several nodes is copied so each node owns its lightmap
+//!   region; materials gain `occlusionTexture` (copied where shared across UV
+//!   sets or with unbaked primitives); four PNG images, their textures and a
+//!   sampler are appended; the root gains `extensions.AOBAKE_lightmap` and
+//!   the name in `extensionsUsed`.
+
+use crate::encode::Encoded;
+use crate::error::{Error, Result};
+use crate::load::accessor::{self, Component, RawAccessor, array};
+use crate::load::{BakeGeometry, Scene};
+use crate::unwrap::Atlas;
+use serde_json::{Value, json};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::io::Write;
+use std::path::Path;
+
+/// The extension name written to primitives and the root.
+pub const EXTENSION: &str = "AOBAKE_lightmap";
+
+/// What to do with a material that already has an occlusionTexture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum OcclusionMode {
+    /// Keep the existing occlusionTexture (the bake is still in the extension).
+    #[default]
+    Keep,
+    /// Replace it with the baked AO.
+    Replace,
+}
+
+/// Appends 4-byte-aligned bufferViews to the GLB BIN buffer (buffers[0]).
+struct Bin {
+    data: Vec<u8>,
+}
+
+impl Bin {
+    fn push_view(&mut self, json: &mut Value, bytes: &[u8], stride: Option<usize>, target: Option<u32>) -> usize {
+        while self.data.len() % 4 != 0 {
+            self.data.push(0);
+        }
+        let mut view = json!({"buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len()});
+        if let Some(s) = stride {
+            view["byteStride"] = json!(s);
+        }
+        if let Some(t) = target {
+            view["target"] = json!(t);
+        }
+        self.data.extend_from_slice(bytes);
+        push(json, "bufferViews", view)
+    }
+}
+
+/// Appends `item` to the root array `key` (creating it) and returns its index.
+fn push(json: &mut Value, key: &str, item: Value) -> usize {
+    let arr = json
+        .as_object_mut()
+        .expect("root is an object")
+        .entry(key)
+        .or_insert_with(|| Value::Array(Vec::new()));
+    if !arr.is_array() {
+        *arr = Value::Array(Vec::new());
+    }
+    let a = arr.as_array_mut().expect("array");
+    a.push(item);
+    a.len() - 1
+}
+
+fn component_gl(c: Component) -> u32 {
+    match c {
+        Component::I8 => 5120,
+        Component::U8 => 5121,
+        Component::I16 => 5122,
+        Component::U16 => 5123,
+        Component::U32 => 5125,
+        Component::F32 => 5126,
+    }
+}
+
+/// Writes the elements `xref` of `raw` as a new vertex-attribute accessor.
+fn gather_accessor(json: &mut Value, bin: &mut Bin, raw: &RawAccessor, xref: &[u32], with_bounds: bool) -> usize {
+    let es = raw.element_size();
+    let stride = es.next_multiple_of(4);
+    let mut bytes = vec![0u8; stride * xref.len()];
+    for (i, &x) in xref.iter().enumerate() {
+        bytes[i * stride..i * stride + es].copy_from_slice(&raw.bytes[x as usize * es..(x as usize + 1) * es]);
+    }
+    let view = bin.push_view(json, &bytes, (stride != es).then_some(stride), Some(34962));
+    let mut acc = json!({
+        "bufferView": view,
+        "componentType": component_gl(raw.component),
+        "count": xref.len(),
+        "type": raw.type_name,
+    });
+    if raw.normalized {
+        acc["normalized"] = json!(true);
+    }
+    if with_bounds && !xref.is_empty() {
+        let plain = RawAccessor {
+            normalized: false,
+            bytes: bytes.chunks_exact(stride).flat_map(|e| e[..es].to_vec()).collect(),
+            ..raw.clone()
+        };
+        let (lo, hi) = bounds(&plain);
+        let num = |v: f32| if raw.component == Component::F32 { json!(v) } else { json!(v as i64) };
+        acc["min"] = Value::Array(lo.into_iter().map(num).collect());
+        acc["max"] = Value::Array(hi.into_iter().map(num).collect());
+    }
+    push(json, "accessors", acc)
+}
+
+/// Per-component min and max of an accessor's raw (unnormalized) values.
+fn bounds(raw: &RawAccessor) -> (Vec<f32>, Vec<f32>) {
+    let mut lo = vec![f32::INFINITY; raw.dims];
+    let mut hi = vec![f32::NEG_INFINITY; raw.dims];
+    let vals: Vec<f32> = match raw.dims {
+        1 => raw.to_f32::<1>("").unwrap_or_default().into_iter().flatten().collect(),
+        2 => raw.to_f32::<2>("").unwrap_or_default().into_iter().flatten().collect(),
+        3 => raw.to_f32::<3>("").unwrap_or_default().into_iter().flatten().collect(),
+        4 => raw.to_f32::<4>("").unwrap_or_default().into_iter().flatten().collect(),
+        _ => Vec::new(),
+    };
+    for e in vals.chunks_exact(raw.dims) {
+        for k in 0..raw.dims {
+            lo[k] = lo[k].min(e[k]);
+            hi[k] = hi[k].max(e[k]);
+        }
+    }
+    (lo, hi)
+}
+
+fn f32_accessor(json: &mut Value, bin: &mut Bin, data: &[f32], ty: &str, dims: usize) -> usize {
+    let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let view = bin.push_view(json, &bytes, None, Some(34962));
+    let mut lo = vec![f32::INFINITY; dims];
+    let mut hi = vec![f32::NEG_INFINITY; dims];
+    for e in data.chunks_exact(dims) {
+        for k in 0..dims {
+            lo[k] = lo[k].min(e[k]);
+            hi[k] = hi[k].max(e[k]);
+        }
+    }
+    let mut acc = json!({"bufferView": view, "componentType": 5126, "count": data.len() / dims, "type": ty});
+    if !data.is_empty() {
+        acc["min"] = json!(lo);
+        acc["max"] = json!(hi);
+    }
+    push(json, "accessors", acc)
+}
+
+fn index_accessor(json: &mut Value, bin: &mut Bin, indices: &[u32], vertex_count: usize) -> usize {
+    let (bytes, ct): (Vec<u8>, u32) = if vertex_count <= u16::MAX as usize {
+        (indices.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect(), 5123)
+    } else {
+        (indices.iter().flat_map(|&i| i.to_le_bytes()).collect(), 5125)
+    };
+    let view = bin.push_view(json, &bytes, None, Some(34963));
+    push(json, "accessors", json!({"bufferView": view, "componentType": ct, "count": indices.len(), "type": "SCALAR"}))
+}
+
+/// Root-level facts recorded in `extensions.AOBAKE_lightmap`.
+#[derive(Clone, Debug)]
+pub struct BakeRecord {
+    pub method: String,
+    pub rays: u32,
+    pub seed: u64,
+    /// World units.
+    pub max_distance: f64,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// A baked primitive's new JSON, before it is placed into a mesh.
+struct PrimitiveEdit {
+    node: usize,
+    mesh: usize,
+    primitive: usize,
+    json: Value,
+}
+
+/// Builds the output GLB.
+pub fn build_glb(
+    scene: &Scene,
+    geometry: &BakeGeometry,
+    atlas: &Atlas,
+    encoded: &Encoded,
+    record: &BakeRecord,
+    occlusion: OcclusionMode,
+) -> Result<Vec<u8>> {
+    let doc = &scene.doc;
+    let mut json = doc.json.clone();
+    let mut bin = if doc.glb_bin {
+        let len = json["buffers"][0]["byteLength"].as_u64().unwrap_or(0) as usize;
+        Bin {
+            data: doc.buffers[0][..len.min(doc.buffers[0].len())].to_vec(),
+        }
+    } else {
+        insert_bin_buffer(&mut json);
+        Bin { data: Vec::new() }
+    };
+
+    // Images, sampler and textures of the bake.
+    let sampler = push(&mut json, "samplers", json!({"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}));
+    let texture = |json: &mut Value, bin: &mut Bin, png: &[u8], name: &str| -> usize {
+        let view = bin.push_view(json, png, None, None);
+        let image = push(json, "images", json!({"name": name, "mimeType": "image/png", "bufferView": view}));
+        push(json, "textures", json!({"name": name, "sampler": sampler, "source": image}))
+    };
+    let occlusion_tex = texture(&mut json, &mut bin, &encoded.occlusion_png, "aobake_occlusion");
+    let sh_tex: Vec<usize> = (0..3)
+        .map(|i| texture(&mut json, &mut bin, &encoded.sh_png[i], &format!("aobake_sh{i}")))
+        .collect();
+    let prim_ext = json!({
+        "texCoord": 0,
+        "occlusion": {"index": occlusion_tex},
+        "sh": sh_tex.iter().map(|&t| json!({"index": t})).collect::<Vec<_>>(),
+        "shScale": encoded.sh_scale,
+        "shOffset": encoded.sh_offset,
+    });
+
+    // New primitives.
+    let mut edits = Vec::new();
+    for (k, rm) in geometry.receivers.iter().enumerate() {
+        let inst = &scene.instances[rm.instance];
+        let g = &scene.geometries[inst.geometry];
+        let charted = &atlas.meshes[k];
+        let what = format!("meshes[{}].primitives[{}]", g.mesh, g.primitive);
+        let mut prim = doc.json["meshes"][g.mesh]["primitives"][g.primitive].clone();
+        let attrs = prim["attributes"]
+            .as_object()
+            .ok_or_else(|| Error::Invalid(format!("{what}.attributes is not an object")))?
+            .clone();
+        let mut new_attrs = serde_json::Map::new();
+        for (name, acc) in &attrs {
+            let a = acc
+                .as_u64()
+                .ok_or_else(|| Error::Invalid(format!("{what}.attributes.{name} is not an index")))?;
+            let raw = accessor::read(doc, a as usize)?;
+            if raw.count != g.positions.len() {
+                return Err(Error::Invalid(format!(
+                    "{what}.attributes.{name} has {} elements, POSITION has {}",
+                    raw.count,
+                    g.positions.len()
+                )));
+            }
+            let had_bounds = doc.json["accessors"][a as usize].get("min").is_some() || name == "POSITION";
+            new_attrs.insert(name.clone(), json!(gather_accessor(&mut json, &mut bin, &raw, &charted.xref, had_bounds)));
+        }
+        let tex_coord = (0..).find(|n| !attrs.contains_key(&format!("TEXCOORD_{n}"))).unwrap_or(0);
+        let uv: Vec<f32> = charted.uv.iter().flatten().copied().collect();
+        let uv_acc = f32_accessor(&mut json, &mut bin, &uv, "VEC2", 2);
+        new_attrs.insert(format!("TEXCOORD_{tex_coord}"), json!(uv_acc));
+        prim["attributes"] = Value::Object(new_attrs);
+        prim["indices"] = json!(index_accessor(&mut json, &mut bin, &charted.triangles, charted.xref.len()));
+        if prim.get("mode").is_some() {
+            prim["mode"] = json!(4);
+        }
+        let mut ext = prim_ext.clone();
+        ext["texCoord"] = json!(tex_coord);
+        let obj = prim.as_object_mut().expect("primitive is an object");
+        let exts = obj.entry("extensions").or_insert_with(|| json!({}));
+        exts[EXTENSION] = ext;
+        edits.push(PrimitiveEdit {
+            node: inst.node,
+            mesh: g.mesh,
+            primitive: g.primitive,
+            json: prim,
+        });
+    }
+
+    place_primitives(&mut json, edits.as_slice())?;
+    assign_materials(&mut json, occlusion_tex, occlusion);
+
+    // Root extension.
+    let obj = json.as_object_mut().expect("root");
+    let exts = obj.entry("extensions").or_insert_with(|| json!({}));
+    exts[EXTENSION] = json!({
+        "version": 1,
+        "method": record.method,
+        "rays": record.rays,
+        "seed": record.seed,
+        "maxDistance": record.max_distance,
+        "resolution": [record.width, record.height],
+    });
+    let used = obj.entry("extensionsUsed").or_insert_with(|| json!([]));
+    if let Some(u) = used.as_array_mut()
+        && !u.iter().any(|e| e == EXTENSION)
+    {
+        u.push(json!(EXTENSION));
+    }
+    while bin.data.len() % 4 != 0 {
+        bin.data.push(0);
+    }
+    json["buffers"][0]["byteLength"] = json!(bin.data.len());
+    Ok(glb_bytes(&json, &bin.data))
+}
+
+/// Makes room for the GLB BIN buffer at `buffers[0]`, shifting references.
+fn insert_bin_buffer(json: &mut Value) {
+    let obj = json.as_object_mut().expect("root");
+    let buffers = obj.entry("buffers").or_insert_with(|| json!([]));
+    if let Some(b) = buffers.as_array_mut() {
+        b.insert(0, json!({"byteLength": 0}));
+    }
+    if let Some(views) = obj.get_mut("bufferViews").and_then(Value::as_array_mut) {
+        for v in views {
+            if let Some(b) = v.get("buffer").and_then(Value::as_u64) {
+                v["buffer"] = json!(b + 1);
+            }
+            for ext in ["EXT_meshopt_compression", "KHR_meshopt_compression"] {
+                if let Some(e) = v.pointer_mut(&format!("/extensions/{ext}"))
+                    && let Some(b) = e.get("buffer").and_then(Value::as_u64)
+                {
+                    e["buffer"] = json!(b + 1);
+                }
+            }
+        }
+    }
+}
+
+/// Puts new primitives into meshes: in place when the mesh is placed only by
+/// baked nodes (the first keeps the original), else in a copy per node.
+fn place_primitives(json: &mut Value, edits: &[PrimitiveEdit]) -> Result<()> {
+    let mut by_node: BTreeMap<usize, (usize, Vec<&PrimitiveEdit>)> = BTreeMap::new();
+    for e in edits {
+        by_node.entry(e.node).or_insert((e.mesh, Vec::new())).1.push(e);
+    }
+    let mut refs: HashMap<usize, BTreeSet<usize>> = HashMap::new();
+    for (ni, n) in array(json, "nodes").iter().enumerate() {
+        if let Some(m) = n.get("mesh").and_then(Value::as_u64) {
+            refs.entry(m as usize).or_default().insert(ni);
+        }
+    }
+    let mut in_place_taken: BTreeSet<usize> = BTreeSet::new();
+    for (&node, (mesh, prims)) in &by_node {
+        let all_baked = refs
+            .get(mesh)
+            .is_some_and(|r| r.iter().all(|n| by_node.get(n).is_some_and(|(m, _)| m == mesh)));
+        let target = if all_baked && in_place_taken.insert(*mesh) {
+            *mesh
+        } else {
+            let copy = json["meshes"][*mesh].clone();
+            let idx = push(json, "meshes", copy);
+            json["nodes"][node]["mesh"] = json!(idx);
+            idx
+        };
+        for e in prims {
+            json["meshes"][target]["primitives"][e.primitive] = e.json.clone();
+        }
+    }
+    Ok(())
+}
+
+/// Gives every baked primitive a material showing the AO through the core
+/// occlusionTexture, duplicating materials shared across UV sets or with
+/// unbaked primitives.
+fn assign_materials(json: &mut Value, occlusion_tex: usize, mode: OcclusionMode) {
+    // (mesh, primitive, material, tex_coord or None for unbaked)
+    let mut uses: Vec<(usize, usize, Option<usize>, Option<usize>)> = Vec::new();
+    for (mi, m) in array(json, "meshes").iter().enumerate() {
+        for (pi, p) in array(m, "primitives").iter().enumerate() {
+            let mat = p.get("material").and_then(Value::as_u64).map(|v| v as usize);
+            let n = p.pointer(&format!("/extensions/{EXTENSION}/texCoord")).and_then(Value::as_u64).map(|v| v as usize);
+            uses.push((mi, pi, mat, n));
+        }
+    }
+    let shared_with_unbaked: BTreeSet<usize> = uses.iter().filter(|u| u.3.is_none()).filter_map(|u| u.2).collect();
+    let mut chosen: HashMap<(Option<usize>, usize), usize> = HashMap::new();
+    let mut edited_in_place: BTreeSet<usize> = BTreeSet::new();
+    for &(mi, pi, mat, n) in &uses {
+        let Some(n) = n else { continue };
+        if let Some(m) = mat
+            && json["materials"][m].get("occlusionTexture").is_some()
+            && mode == OcclusionMode::Keep
+        {
+            continue;
+        }
+        let target = *chosen.entry((mat, n)).or_insert_with(|| match mat {
+            Some(m) if !shared_with_unbaked.contains(&m) && edited_in_place.insert(m) => m,
+            Some(m) => {
+                let copy = json["materials"][m].clone();
+                push(json, "materials", copy)
+            }
+            None => push(json, "materials", json!({"name": "aobake_default", "pbrMetallicRoughness": {}})),
+        });
+        json["materials"][target]["occlusionTexture"] = json!({"index": occlusion_tex, "texCoord": n});
+        if mat != Some(target) {
+            json["meshes"][mi]["primitives"][pi]["material"] = json!(target);
+        }
+    }
+}
+
+/// Serializes JSON and BIN into a GLB container.
+pub fn glb_bytes(json: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut text = serde_json::to_vec(json).expect("JSON serializes");
+    while text.len() % 4 != 0 {
+        text.push(b' ');
+    }
+    let bin_len = bin.len().next_multiple_of(4);
+    let total = 12 + 8 + text.len() + if bin.is_empty() { 0 } else { 8 + bin_len };
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    if !bin.is_empty() {
+        out.extend_from_slice(&(bin_len as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(bin);
+        out.resize(total, 0);
+    }
+    out
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory
+/// and a rename: on failure nothing is left behind.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".aobake-")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(|e| Error::io(dir, e))?;
+    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
+    tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
+    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    Ok(())
+}
