@@ -1,7 +1,7 @@
 //! The `aobake` command line.
 
 use aobake::pipeline::{self, Method, Settings};
-use aobake::unwrap::AtlasSize;
+use aobake::unwrap::{AtlasSize, Packing};
 use aobake::write::OcclusionMode;
 use clap::{Parser, ValueEnum};
 use std::path::PathBuf;
@@ -11,6 +11,14 @@ use std::process::ExitCode;
 enum MethodArg {
     /// Brute-force Monte Carlo.
     Mc,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum PackingArg {
+    /// Rows of charts: fast, slightly less dense.
+    Fast,
+    /// Charts nested by shape: densest, slow with thousands of charts.
+    Shape,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -50,6 +58,9 @@ struct Cli {
     /// Empty texels around each chart.
     #[arg(long, default_value_t = 2)]
     padding: u32,
+    /// Chart packing.
+    #[arg(long, value_enum, default_value_t = PackingArg::Fast)]
+    packing: PackingArg,
     /// What to do with materials that already have an occlusionTexture.
     #[arg(long, value_enum, default_value_t = OcclusionArg::Keep)]
     occlusion: OcclusionArg,
@@ -88,6 +99,10 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             None => AtlasSize::Resolution(cli.resolution),
         },
         padding: cli.padding,
+        packing: match cli.packing {
+            PackingArg::Fast => Packing::Fast,
+            PackingArg::Shape => Packing::Shape,
+        },
         method: match cli.method {
             MethodArg::Mc => Method::Mc,
         },

@@ -11,7 +11,7 @@ use crate::load::{self, BakeGeometry, Scene};
 use crate::mc::{self, Bake, McSettings};
 use crate::rasterize::{self, Receivers};
 use crate::trace::Tracer;
-use crate::unwrap::{self, Atlas, AtlasSize, UnwrapOptions};
+use crate::unwrap::{self, Atlas, AtlasSize, Packing, UnwrapOptions};
 use crate::write::{self, BakeRecord, OcclusionMode};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
@@ -43,6 +43,7 @@ impl Method {
 pub struct Settings {
     pub size: AtlasSize,
     pub padding: u32,
+    pub packing: Packing,
     pub method: Method,
     pub rays: u32,
     /// World units; `None`: [`DEFAULT_MAX_DISTANCE_FRACTION`] of the diagonal.
@@ -59,6 +60,7 @@ impl Default for Settings {
         Settings {
             size: AtlasSize::Resolution(1024),
             padding: 2,
+            packing: Packing::Fast,
             method: Method::Mc,
             rays: 256,
             max_distance: None,
@@ -165,7 +167,11 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         return Err(Error::Option("--rays must be at least 1".into()));
     }
     if scene.baked_count() == 0 {
-        return Err(Error::Empty("no triangle primitive to bake in the default scene".into()));
+        return Err(Error::Empty(if scene.instances.is_empty() {
+            "the default scene has no triangle primitive (points and lines are not baked)".into()
+        } else {
+            "every triangle mesh of the default scene is skinned, morphed or GPU-instanced (they only occlude)".into()
+        }));
     }
     let mut t = Timer::new();
     let geometry = scene.bake_geometry()?;
@@ -176,7 +182,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         None => DEFAULT_MAX_DISTANCE_FRACTION * diagonal,
     };
     t.lap("prepare");
-    let atlas = unwrap::unwrap(&geometry.receivers, &UnwrapOptions { size: s.size, padding: s.padding }, diagonal)?;
+    let atlas = unwrap::unwrap(&geometry.receivers, &UnwrapOptions { size: s.size, padding: s.padding, packing: s.packing }, diagonal)?;
     t.lap("unwrap");
     let receivers = rasterize::rasterize(&geometry.receivers, &atlas);
     if receivers.is_empty() {
