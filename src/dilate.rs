@@ -23,7 +23,16 @@ pub fn nearest_receiver(width: u32, height: u32, receiver_texels: &[u32]) -> Vec
     }
     while let Some(t) = queue.pop_front() {
         let (x, y) = ((t % w) as isize, (t / w) as isize);
-        for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)] {
+        for (dx, dy) in [
+            (1, 0),
+            (-1, 0),
+            (0, 1),
+            (0, -1),
+            (1, 1),
+            (-1, -1),
+            (1, -1),
+            (-1, 1),
+        ] {
             let (nx, ny) = (x + dx, y + dy);
             if nx < 0 || ny < 0 || nx >= w as isize || ny >= h as isize {
                 continue;

@@ -38,7 +38,9 @@ pub struct Encoded {
 /// Spreads receiver results over the image through the dilation map.
 /// Fails if any value is NaN or infinite (it must never reach a texture).
 pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Lightmap> {
-    if let Some(r) = (0..receivers.len()).find(|&r| !bake.ao[r].is_finite() || !bake.sh[r].iter().all(|c| c.is_finite())) {
+    if let Some(r) = (0..receivers.len())
+        .find(|&r| !bake.ao[r].is_finite() || !bake.sh[r].iter().all(|c| c.is_finite()))
+    {
         let t = receivers.texel[r];
         return Err(Error::Encode(format!(
             "non-finite result at texel ({}, {})",
@@ -54,8 +56,14 @@ pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Ligh
     Ok(Lightmap {
         width: receivers.width,
         height: receivers.height,
-        ao: fill.iter().map(|t| pick(t).map_or(1.0, |r| bake.ao[r])).collect(),
-        sh: fill.iter().map(|t| pick(t).map_or([0.0; SH_COUNT], |r| bake.sh[r])).collect(),
+        ao: fill
+            .iter()
+            .map(|t| pick(t).map_or(1.0, |r| bake.ao[r]))
+            .collect(),
+        sh: fill
+            .iter()
+            .map(|t| pick(t).map_or([0.0; SH_COUNT], |r| bake.sh[r]))
+            .collect(),
         covered,
     })
 }
@@ -101,7 +109,11 @@ pub fn encode(lm: &Lightmap) -> Result<Encoded> {
     let occlusion_png = png(w, h, &ao, image::ExtendedColorType::L8)?;
     let (sh_scale, sh_offset) = sh_range(&lm.sh);
     let channel = |c: &[f32; SH_COUNT], i: usize| -> u8 {
-        if sh_scale[i] > 0.0 { to_u8((c[i] - sh_offset[i]) / sh_scale[i]) } else { 0 }
+        if sh_scale[i] > 0.0 {
+            to_u8((c[i] - sh_offset[i]) / sh_scale[i])
+        } else {
+            0
+        }
     };
     let mut pages: [Vec<u8>; 3] = Default::default();
     for (p, page) in pages.iter_mut().enumerate() {
@@ -109,7 +121,13 @@ pub fn encode(lm: &Lightmap) -> Result<Encoded> {
         for c in &lm.sh {
             for k in 0..4 {
                 let i = p * 4 + k;
-                rgba.push(if i < SH_COUNT { channel(c, i) } else if k == 3 { 255 } else { 0 });
+                rgba.push(if i < SH_COUNT {
+                    channel(c, i)
+                } else if k == 3 {
+                    255
+                } else {
+                    0
+                });
             }
         }
         *page = png(w, h, &rgba, image::ExtendedColorType::Rgba8)?;

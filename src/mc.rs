@@ -36,7 +36,12 @@ const CHUNK: usize = 64;
 
 /// Bakes every receiver by Monte Carlo. `progress` is called with the
 /// number of receivers finished since its last call.
-pub fn bake(receivers: &Receivers, tracer: &Tracer, s: &McSettings, progress: &(dyn Fn(u64) + Sync)) -> Bake {
+pub fn bake(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    s: &McSettings,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Bake {
     let n = receivers.len();
     let mut ao = vec![0.0f32; n];
     let mut shv = vec![[0.0f32; SH_COUNT]; n];
@@ -60,15 +65,26 @@ pub fn bake(receivers: &Receivers, tracer: &Tracer, s: &McSettings, progress: &(
 }
 
 /// Estimates AO and SH of receiver `r` with `s.rays` rays.
-pub fn integrate_receiver(receivers: &Receivers, r: usize, tracer: &Tracer, s: &McSettings) -> (f32, [f32; SH_COUNT]) {
+pub fn integrate_receiver(
+    receivers: &Receivers,
+    r: usize,
+    tracer: &Tracer,
+    s: &McSettings,
+) -> (f32, [f32; SH_COUNT]) {
     let n = receivers.normal[r];
     let frame = Frame::from_normal(n);
-    let origin = offset_origin(receivers.position[r], receivers.geo_normal[r], receivers.footprint[r]);
+    let origin = offset_origin(
+        receivers.position[r],
+        receivers.geo_normal[r],
+        receivers.footprint[r],
+    );
     let seed = receiver_seed(s.seed, receivers.texel[r] as u64, 0);
     let mut visible = 0u32;
     let mut acc = [0.0f32; SH_COUNT];
     for i in 0..s.rays {
-        let dir = frame.to_world(cosine_hemisphere(sobol_2d(i, seed))).normalize();
+        let dir = frame
+            .to_world(cosine_hemisphere(sobol_2d(i, seed)))
+            .normalize();
         if !tracer.occluded(origin, dir, s.max_distance) {
             visible += 1;
             let y = sh::basis(dir);

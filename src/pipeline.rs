@@ -123,27 +123,44 @@ struct Timer {
 impl Timer {
     fn new() -> Timer {
         let now = Instant::now();
-        Timer { stages: Vec::new(), last: now, start: now }
+        Timer {
+            stages: Vec::new(),
+            last: now,
+            start: now,
+        }
     }
     fn lap(&mut self, stage: &'static str) {
         let now = Instant::now();
-        self.stages.push(StageTime { stage, seconds: (now - self.last).as_secs_f64() });
+        self.stages.push(StageTime {
+            stage,
+            seconds: (now - self.last).as_secs_f64(),
+        });
         self.last = now;
     }
     fn seconds(&self, stage: &str) -> f64 {
-        self.stages.iter().filter(|s| s.stage == stage).map(|s| s.seconds).sum()
+        self.stages
+            .iter()
+            .filter(|s| s.stage == stage)
+            .map(|s| s.seconds)
+            .sum()
     }
 }
 
 fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
     let pb = ProgressBar::with_draw_target(
         Some(len),
-        if show && std::io::stderr().is_terminal() { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() },
+        if show && std::io::stderr().is_terminal() {
+            ProgressDrawTarget::stderr()
+        } else {
+            ProgressDrawTarget::hidden()
+        },
     );
     pb.set_style(
-        ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} texels, {per_sec}, eta {eta}")
-            .expect("template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{msg:>10} [{bar:40}] {pos}/{len} texels, {per_sec}, eta {eta}",
+        )
+        .expect("template")
+        .progress_chars("=> "),
     );
     pb.set_message(msg);
     pb
@@ -156,7 +173,13 @@ pub fn bake_file(input: &Path, settings: &Settings) -> Result<Baked> {
     let load_seconds = start.elapsed().as_secs_f64();
     let mut baked = bake_scene(&scene, settings)?;
     baked.report.input = input.display().to_string();
-    baked.report.stages.insert(0, StageTime { stage: "load", seconds: load_seconds });
+    baked.report.stages.insert(
+        0,
+        StageTime {
+            stage: "load",
+            seconds: load_seconds,
+        },
+    );
     baked.report.total_seconds += load_seconds;
     Ok(baked)
 }
@@ -178,15 +201,29 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
     let diagonal = geometry.space.diagonal;
     let max_distance_world = match s.max_distance {
         Some(d) if d.is_finite() && d > 0.0 => d,
-        Some(d) => return Err(Error::Option(format!("--max-distance {d} must be finite and > 0"))),
+        Some(d) => {
+            return Err(Error::Option(format!(
+                "--max-distance {d} must be finite and > 0"
+            )));
+        }
         None => DEFAULT_MAX_DISTANCE_FRACTION * diagonal,
     };
     t.lap("prepare");
-    let atlas = unwrap::unwrap(&geometry.receivers, &UnwrapOptions { size: s.size, padding: s.padding, packing: s.packing }, diagonal)?;
+    let atlas = unwrap::unwrap(
+        &geometry.receivers,
+        &UnwrapOptions {
+            size: s.size,
+            padding: s.padding,
+            packing: s.packing,
+        },
+        diagonal,
+    )?;
     t.lap("unwrap");
     let receivers = rasterize::rasterize(&geometry.receivers, &atlas);
     if receivers.is_empty() {
-        return Err(Error::Empty("no texel is covered: every baked triangle is degenerate".into()));
+        return Err(Error::Empty(
+            "no texel is covered: every baked triangle is degenerate".into(),
+        ));
     }
     t.lap("rasterize");
     let tracer = Tracer::new(&geometry.occluders);
@@ -234,7 +271,11 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         occluder_triangles: tracer.triangle_count(),
         rays_per_texel: s.rays,
         rays_cast: bake.rays,
-        rays_per_second: if trace_s > 0.0 { bake.rays as f64 / trace_s } else { 0.0 },
+        rays_per_second: if trace_s > 0.0 {
+            bake.rays as f64 / trace_s
+        } else {
+            0.0
+        },
         max_distance: max_distance_world,
         seed: s.seed,
         threads: rayon::current_num_threads(),
@@ -242,7 +283,16 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         stages: t.stages,
         warnings: scene.warnings.clone(),
     };
-    Ok(Baked { geometry, atlas, receivers, bake, lightmap, encoded, glb, report })
+    Ok(Baked {
+        geometry,
+        atlas,
+        receivers,
+        bake,
+        lightmap,
+        encoded,
+        glb,
+        report,
+    })
 }
 
 /// Whether two paths name the same file (the second may not exist yet).
@@ -266,7 +316,10 @@ pub fn run(input: &Path, output: &Path, settings: &Settings) -> Result<Report> {
     write::write_atomic(output, &baked.glb)?;
     let mut report = baked.report;
     let secs = t.elapsed().as_secs_f64();
-    report.stages.push(StageTime { stage: "save", seconds: secs });
+    report.stages.push(StageTime {
+        stage: "save",
+        seconds: secs,
+    });
     report.total_seconds += secs;
     Ok(report)
 }

@@ -189,7 +189,8 @@ fn rasterize_band(tris: &[RasterTri], list: &[u32], band: u32, w: u32, h: u32) -
     let y1 = (y0 + BAND_ROWS).min(h);
     let rows = (y1 - y0) as usize;
     // Best candidate per texel of the band: (squared distance, triangle, barycentrics).
-    let mut best: Vec<(f32, u32, [f32; 3])> = vec![(f32::INFINITY, u32::MAX, [0.0; 3]); rows * w as usize];
+    let mut best: Vec<(f32, u32, [f32; 3])> =
+        vec![(f32::INFINITY, u32::MAX, [0.0; 3]); rows * w as usize];
     let reach2 = CONSERVATIVE_REACH * CONSERVATIVE_REACH;
     for &ti in list {
         let t = &tris[ti as usize];

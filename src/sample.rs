@@ -69,7 +69,10 @@ pub fn cell_of(d: Vec3) -> usize {
 #[inline]
 pub fn in_cell(cell: usize, u: Vec2) -> Vec2 {
     let n = CELLS_PER_SIDE as f32;
-    Vec2::new(((cell % CELLS_PER_SIDE) as f32 + u.x) / n, ((cell / CELLS_PER_SIDE) as f32 + u.y) / n)
+    Vec2::new(
+        ((cell % CELLS_PER_SIDE) as f32 + u.x) / n,
+        ((cell / CELLS_PER_SIDE) as f32 + u.y) / n,
+    )
 }
 
 /// An orthonormal frame around a unit normal (Duff et al. 2017, branchless).
@@ -98,7 +101,11 @@ impl Frame {
     }
     #[inline]
     pub fn to_local(&self, w: Vec3) -> Vec3 {
-        Vec3::new(w.dot(self.tangent), w.dot(self.bitangent), w.dot(self.normal))
+        Vec3::new(
+            w.dot(self.tangent),
+            w.dot(self.bitangent),
+            w.dot(self.normal),
+        )
     }
 }
 
@@ -113,7 +120,14 @@ pub fn mix64(mut x: u64) -> u64 {
 /// The seed of one receiver's sample stream, independent of thread count.
 #[inline]
 pub fn receiver_seed(seed: u64, receiver: u64, stream: u64) -> u64 {
-    mix64(seed ^ mix64(receiver.wrapping_add(0x9e37_79b9_7f4a_7c15).wrapping_mul(stream | 1) ^ stream))
+    mix64(
+        seed ^ mix64(
+            receiver
+                .wrapping_add(0x9e37_79b9_7f4a_7c15)
+                .wrapping_mul(stream | 1)
+                ^ stream,
+        ),
+    )
 }
 
 /// Hash-based Owen scrambling of a 32-bit fixed-point value (Laine-Karras,
@@ -182,7 +196,10 @@ mod tests {
         let mut counts = [0u32; CELL_COUNT];
         for i in 0..n {
             // Uniform points on the disk by rejection from a lattice.
-            let p = Vec2::new(((i % 256) as f32 + 0.5) / 128.0 - 1.0, ((i / 256) as f32 + 0.5) / 128.0 - 1.0);
+            let p = Vec2::new(
+                ((i % 256) as f32 + 0.5) / 128.0 - 1.0,
+                ((i / 256) as f32 + 0.5) / 128.0 - 1.0,
+            );
             if p.length_squared() < 1.0 {
                 let z = (1.0 - p.length_squared()).sqrt();
                 counts[cell_of(Vec3::new(p.x, p.y, z))] += 1;
@@ -211,7 +228,13 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal_for_any_normal() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(1.0, 2.0, -3.0).normalize(), Vec3::new(0.0, -1e-8, -1.0).normalize()] {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(1.0, 2.0, -3.0).normalize(),
+            Vec3::new(0.0, -1e-8, -1.0).normalize(),
+        ] {
             let f = Frame::from_normal(n);
             assert!((f.tangent.length() - 1.0).abs() < 1e-5);
             assert!((f.bitangent.length() - 1.0).abs() < 1e-5);

@@ -58,7 +58,11 @@ mod tests {
             let theta = (i as f64 + 0.5) / nt as f64 * std::f64::consts::PI;
             for j in 0..np {
                 let phi = (j as f64 + 0.5) / np as f64 * 2.0 * std::f64::consts::PI;
-                let w = Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
+                let w = Vec3::new(
+                    (theta.sin() * phi.cos()) as f32,
+                    (theta.sin() * phi.sin()) as f32,
+                    theta.cos() as f32,
+                );
                 s += f(w) * theta.sin();
             }
         }

@@ -76,7 +76,9 @@ pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -
         AtlasSize::TexelDensity(t) => {
             let tpu = t * diagonal;
             if !(tpu.is_finite() && tpu > 0.0) {
-                return Err(Error::Option(format!("--texel-density {t} must be finite and > 0")));
+                return Err(Error::Option(format!(
+                    "--texel-density {t} must be finite and > 0"
+                )));
             }
             uvunwrap::Density::Fixed {
                 texels_per_unit: tpu as f32,

@@ -44,11 +44,18 @@ struct Bin {
 }
 
 impl Bin {
-    fn push_view(&mut self, json: &mut Value, bytes: &[u8], stride: Option<usize>, target: Option<u32>) -> usize {
+    fn push_view(
+        &mut self,
+        json: &mut Value,
+        bytes: &[u8],
+        stride: Option<usize>,
+        target: Option<u32>,
+    ) -> usize {
         while self.data.len() % 4 != 0 {
             self.data.push(0);
         }
-        let mut view = json!({"buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len()});
+        let mut view =
+            json!({"buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len()});
         if let Some(s) = stride {
             view["byteStride"] = json!(s);
         }
@@ -87,12 +94,19 @@ fn component_gl(c: Component) -> u32 {
 }
 
 /// Writes the elements `xref` of `raw` as a new vertex-attribute accessor.
-fn gather_accessor(json: &mut Value, bin: &mut Bin, raw: &RawAccessor, xref: &[u32], with_bounds: bool) -> usize {
+fn gather_accessor(
+    json: &mut Value,
+    bin: &mut Bin,
+    raw: &RawAccessor,
+    xref: &[u32],
+    with_bounds: bool,
+) -> usize {
     let es = raw.element_size();
     let stride = es.next_multiple_of(4);
     let mut bytes = vec![0u8; stride * xref.len()];
     for (i, &x) in xref.iter().enumerate() {
-        bytes[i * stride..i * stride + es].copy_from_slice(&raw.bytes[x as usize * es..(x as usize + 1) * es]);
+        bytes[i * stride..i * stride + es]
+            .copy_from_slice(&raw.bytes[x as usize * es..(x as usize + 1) * es]);
     }
     let view = bin.push_view(json, &bytes, (stride != es).then_some(stride), Some(34962));
     let mut acc = json!({
@@ -107,11 +121,20 @@ fn gather_accessor(json: &mut Value, bin: &mut Bin, raw: &RawAccessor, xref: &[u
     if with_bounds && !xref.is_empty() {
         let plain = RawAccessor {
             normalized: false,
-            bytes: bytes.chunks_exact(stride).flat_map(|e| e[..es].to_vec()).collect(),
+            bytes: bytes
+                .chunks_exact(stride)
+                .flat_map(|e| e[..es].to_vec())
+                .collect(),
             ..raw.clone()
         };
         let (lo, hi) = bounds(&plain);
-        let num = |v: f32| if raw.component == Component::F32 { json!(v) } else { json!(v as i64) };
+        let num = |v: f32| {
+            if raw.component == Component::F32 {
+                json!(v)
+            } else {
+                json!(v as i64)
+            }
+        };
         acc["min"] = Value::Array(lo.into_iter().map(num).collect());
         acc["max"] = Value::Array(hi.into_iter().map(num).collect());
     }
@@ -123,10 +146,30 @@ fn bounds(raw: &RawAccessor) -> (Vec<f32>, Vec<f32>) {
     let mut lo = vec![f32::INFINITY; raw.dims];
     let mut hi = vec![f32::NEG_INFINITY; raw.dims];
     let vals: Vec<f32> = match raw.dims {
-        1 => raw.to_f32::<1>("").unwrap_or_default().into_iter().flatten().collect(),
-        2 => raw.to_f32::<2>("").unwrap_or_default().into_iter().flatten().collect(),
-        3 => raw.to_f32::<3>("").unwrap_or_default().into_iter().flatten().collect(),
-        4 => raw.to_f32::<4>("").unwrap_or_default().into_iter().flatten().collect(),
+        1 => raw
+            .to_f32::<1>("")
+            .unwrap_or_default()
+            .into_iter()
+            .flatten()
+            .collect(),
+        2 => raw
+            .to_f32::<2>("")
+            .unwrap_or_default()
+            .into_iter()
+            .flatten()
+            .collect(),
+        3 => raw
+            .to_f32::<3>("")
+            .unwrap_or_default()
+            .into_iter()
+            .flatten()
+            .collect(),
+        4 => raw
+            .to_f32::<4>("")
+            .unwrap_or_default()
+            .into_iter()
+            .flatten()
+            .collect(),
         _ => Vec::new(),
     };
     for e in vals.chunks_exact(raw.dims) {
@@ -149,7 +192,8 @@ fn f32_accessor(json: &mut Value, bin: &mut Bin, data: &[f32], ty: &str, dims: u
             hi[k] = hi[k].max(e[k]);
         }
     }
-    let mut acc = json!({"bufferView": view, "componentType": 5126, "count": data.len() / dims, "type": ty});
+    let mut acc =
+        json!({"bufferView": view, "componentType": 5126, "count": data.len() / dims, "type": ty});
     if !data.is_empty() {
         acc["min"] = json!(lo);
         acc["max"] = json!(hi);
@@ -159,12 +203,25 @@ fn f32_accessor(json: &mut Value, bin: &mut Bin, data: &[f32], ty: &str, dims: u
 
 fn index_accessor(json: &mut Value, bin: &mut Bin, indices: &[u32], vertex_count: usize) -> usize {
     let (bytes, ct): (Vec<u8>, u32) = if vertex_count <= u16::MAX as usize {
-        (indices.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect(), 5123)
+        (
+            indices
+                .iter()
+                .flat_map(|&i| (i as u16).to_le_bytes())
+                .collect(),
+            5123,
+        )
     } else {
-        (indices.iter().flat_map(|&i| i.to_le_bytes()).collect(), 5125)
+        (
+            indices.iter().flat_map(|&i| i.to_le_bytes()).collect(),
+            5125,
+        )
     };
     let view = bin.push_view(json, &bytes, None, Some(34963));
-    push(json, "accessors", json!({"bufferView": view, "componentType": ct, "count": indices.len(), "type": "SCALAR"}))
+    push(
+        json,
+        "accessors",
+        json!({"bufferView": view, "componentType": ct, "count": indices.len(), "type": "SCALAR"}),
+    )
 }
 
 /// Root-level facts recorded in `extensions.AOBAKE_lightmap`.
@@ -209,15 +266,39 @@ pub fn build_glb(
     };
 
     // Images, sampler and textures of the bake.
-    let sampler = push(&mut json, "samplers", json!({"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}));
+    let sampler = push(
+        &mut json,
+        "samplers",
+        json!({"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}),
+    );
     let texture = |json: &mut Value, bin: &mut Bin, png: &[u8], name: &str| -> usize {
         let view = bin.push_view(json, png, None, None);
-        let image = push(json, "images", json!({"name": name, "mimeType": "image/png", "bufferView": view}));
-        push(json, "textures", json!({"name": name, "sampler": sampler, "source": image}))
+        let image = push(
+            json,
+            "images",
+            json!({"name": name, "mimeType": "image/png", "bufferView": view}),
+        );
+        push(
+            json,
+            "textures",
+            json!({"name": name, "sampler": sampler, "source": image}),
+        )
     };
-    let occlusion_tex = texture(&mut json, &mut bin, &encoded.occlusion_png, "aobake_occlusion");
+    let occlusion_tex = texture(
+        &mut json,
+        &mut bin,
+        &encoded.occlusion_png,
+        "aobake_occlusion",
+    );
     let sh_tex: Vec<usize> = (0..3)
-        .map(|i| texture(&mut json, &mut bin, &encoded.sh_png[i], &format!("aobake_sh{i}")))
+        .map(|i| {
+            texture(
+                &mut json,
+                &mut bin,
+                &encoded.sh_png[i],
+                &format!("aobake_sh{i}"),
+            )
+        })
         .collect();
     let prim_ext = json!({
         "texCoord": 0,
@@ -241,9 +322,9 @@ pub fn build_glb(
             .clone();
         let mut new_attrs = serde_json::Map::new();
         for (name, acc) in &attrs {
-            let a = acc
-                .as_u64()
-                .ok_or_else(|| Error::Invalid(format!("{what}.attributes.{name} is not an index")))?;
+            let a = acc.as_u64().ok_or_else(|| {
+                Error::Invalid(format!("{what}.attributes.{name} is not an index"))
+            })?;
             let raw = accessor::read(doc, a as usize)?;
             if raw.count != g.positions.len() {
                 return Err(Error::Invalid(format!(
@@ -252,15 +333,32 @@ pub fn build_glb(
                     g.positions.len()
                 )));
             }
-            let had_bounds = doc.json["accessors"][a as usize].get("min").is_some() || name == "POSITION";
-            new_attrs.insert(name.clone(), json!(gather_accessor(&mut json, &mut bin, &raw, &charted.xref, had_bounds)));
+            let had_bounds =
+                doc.json["accessors"][a as usize].get("min").is_some() || name == "POSITION";
+            new_attrs.insert(
+                name.clone(),
+                json!(gather_accessor(
+                    &mut json,
+                    &mut bin,
+                    &raw,
+                    &charted.xref,
+                    had_bounds
+                )),
+            );
         }
-        let tex_coord = (0..).find(|n| !attrs.contains_key(&format!("TEXCOORD_{n}"))).unwrap_or(0);
+        let tex_coord = (0..)
+            .find(|n| !attrs.contains_key(&format!("TEXCOORD_{n}")))
+            .unwrap_or(0);
         let uv: Vec<f32> = charted.uv.iter().flatten().copied().collect();
         let uv_acc = f32_accessor(&mut json, &mut bin, &uv, "VEC2", 2);
         new_attrs.insert(format!("TEXCOORD_{tex_coord}"), json!(uv_acc));
         prim["attributes"] = Value::Object(new_attrs);
-        prim["indices"] = json!(index_accessor(&mut json, &mut bin, &charted.triangles, charted.xref.len()));
+        prim["indices"] = json!(index_accessor(
+            &mut json,
+            &mut bin,
+            &charted.triangles,
+            charted.xref.len()
+        ));
         if prim.get("mode").is_some() {
             prim["mode"] = json!(4);
         }
@@ -332,7 +430,11 @@ fn insert_bin_buffer(json: &mut Value) {
 fn place_primitives(json: &mut Value, edits: &[PrimitiveEdit]) -> Result<()> {
     let mut by_node: BTreeMap<usize, (usize, Vec<&PrimitiveEdit>)> = BTreeMap::new();
     for e in edits {
-        by_node.entry(e.node).or_insert((e.mesh, Vec::new())).1.push(e);
+        by_node
+            .entry(e.node)
+            .or_insert((e.mesh, Vec::new()))
+            .1
+            .push(e);
     }
     let mut refs: HashMap<usize, BTreeSet<usize>> = HashMap::new();
     for (ni, n) in array(json, "nodes").iter().enumerate() {
@@ -342,9 +444,10 @@ fn place_primitives(json: &mut Value, edits: &[PrimitiveEdit]) -> Result<()> {
     }
     let mut in_place_taken: BTreeSet<usize> = BTreeSet::new();
     for (&node, (mesh, prims)) in &by_node {
-        let all_baked = refs
-            .get(mesh)
-            .is_some_and(|r| r.iter().all(|n| by_node.get(n).is_some_and(|(m, _)| m == mesh)));
+        let all_baked = refs.get(mesh).is_some_and(|r| {
+            r.iter()
+                .all(|n| by_node.get(n).is_some_and(|(m, _)| m == mesh))
+        });
         let target = if all_baked && in_place_taken.insert(*mesh) {
             *mesh
         } else {
@@ -368,12 +471,22 @@ fn assign_materials(json: &mut Value, occlusion_tex: usize, mode: OcclusionMode)
     let mut uses: Vec<(usize, usize, Option<usize>, Option<usize>)> = Vec::new();
     for (mi, m) in array(json, "meshes").iter().enumerate() {
         for (pi, p) in array(m, "primitives").iter().enumerate() {
-            let mat = p.get("material").and_then(Value::as_u64).map(|v| v as usize);
-            let n = p.pointer(&format!("/extensions/{EXTENSION}/texCoord")).and_then(Value::as_u64).map(|v| v as usize);
+            let mat = p
+                .get("material")
+                .and_then(Value::as_u64)
+                .map(|v| v as usize);
+            let n = p
+                .pointer(&format!("/extensions/{EXTENSION}/texCoord"))
+                .and_then(Value::as_u64)
+                .map(|v| v as usize);
             uses.push((mi, pi, mat, n));
         }
     }
-    let shared_with_unbaked: BTreeSet<usize> = uses.iter().filter(|u| u.3.is_none()).filter_map(|u| u.2).collect();
+    let shared_with_unbaked: BTreeSet<usize> = uses
+        .iter()
+        .filter(|u| u.3.is_none())
+        .filter_map(|u| u.2)
+        .collect();
     let mut chosen: HashMap<(Option<usize>, usize), usize> = HashMap::new();
     let mut edited_in_place: BTreeSet<usize> = BTreeSet::new();
     for &(mi, pi, mat, n) in &uses {
@@ -390,9 +503,14 @@ fn assign_materials(json: &mut Value, occlusion_tex: usize, mode: OcclusionMode)
                 let copy = json["materials"][m].clone();
                 push(json, "materials", copy)
             }
-            None => push(json, "materials", json!({"name": "aobake_default", "pbrMetallicRoughness": {}})),
+            None => push(
+                json,
+                "materials",
+                json!({"name": "aobake_default", "pbrMetallicRoughness": {}}),
+            ),
         });
-        json["materials"][target]["occlusionTexture"] = json!({"index": occlusion_tex, "texCoord": n});
+        json["materials"][target]["occlusionTexture"] =
+            json!({"index": occlusion_tex, "texCoord": n});
         if mat != Some(target) {
             json["meshes"][mi]["primitives"][pi]["material"] = json!(target);
         }

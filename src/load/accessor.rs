@@ -58,7 +58,11 @@ impl Component {
             }
             Component::I16 => {
                 let v = i16::from_le_bytes([b[0], b[1]]) as f32;
-                if normalized { (v / 32767.0).max(-1.0) } else { v }
+                if normalized {
+                    (v / 32767.0).max(-1.0)
+                } else {
+                    v
+                }
             }
             Component::U16 => {
                 let v = u16::from_le_bytes([b[0], b[1]]) as f32;
@@ -121,7 +125,10 @@ impl RawAccessor {
     /// Elements as u32 indices (u8/u16/u32 scalars only).
     pub fn to_indices(&self, what: &str) -> Result<Vec<u32>> {
         if self.dims != 1
-            || !matches!(self.component, Component::U8 | Component::U16 | Component::U32)
+            || !matches!(
+                self.component,
+                Component::U8 | Component::U16 | Component::U32
+            )
         {
             return Err(Error::Invalid(format!(
                 "{what}: indices must be unsigned byte/short/int scalars"
@@ -217,7 +224,10 @@ pub fn read(doc: &Document, index: usize) -> Result<RawAccessor> {
             component.size()
         )));
     }
-    let normalized = acc.get("normalized").and_then(Value::as_bool).unwrap_or(false);
+    let normalized = acc
+        .get("normalized")
+        .and_then(Value::as_bool)
+        .unwrap_or(false);
     let count = field_usize(acc, "count", &what)?
         .ok_or_else(|| Error::Invalid(format!("{what}.count is missing")))?;
     let es = component.size() * dims;
@@ -304,7 +314,9 @@ fn apply_sparse(
     if (ioff as u128 + (n as u128) * ics as u128) > idata.len() as u128
         || (voff as u128 + (n as u128) * es as u128) > vdata.len() as u128
     {
-        return Err(Error::Invalid(format!("{sw}: {n} entries run past their buffer views")));
+        return Err(Error::Invalid(format!(
+            "{sw}: {n} entries run past their buffer views"
+        )));
     }
     for k in 0..n {
         let b = &idata[ioff + k * ics..];
@@ -318,7 +330,8 @@ fn apply_sparse(
                 "{sw}: index {target} is past the accessor count {count}"
             )));
         }
-        bytes[target * es..(target + 1) * es].copy_from_slice(&vdata[voff + k * es..voff + (k + 1) * es]);
+        bytes[target * es..(target + 1) * es]
+            .copy_from_slice(&vdata[voff + k * es..voff + (k + 1) * es]);
     }
     Ok(())
 }

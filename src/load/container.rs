@@ -41,7 +41,9 @@ pub fn read_file(path: &Path) -> Result<Document> {
 pub fn parse(bytes: &[u8], base_dir: &Path) -> Result<Document> {
     let (json_bytes, bin) = if bytes.len() >= 4 && le_u32(bytes, 0) == GLB_MAGIC {
         split_glb(bytes)?
-    } else if bytes.first().is_some_and(|&b| b == b'{' || b.is_ascii_whitespace())
+    } else if bytes
+        .first()
+        .is_some_and(|&b| b == b'{' || b.is_ascii_whitespace())
         || bytes.starts_with(&[0xEF, 0xBB, 0xBF])
     {
         (bytes, None)
@@ -50,7 +52,9 @@ pub fn parse(bytes: &[u8], base_dir: &Path) -> Result<Document> {
             "not a glTF file: no GLB magic \"glTF\" and no JSON object".into(),
         ));
     };
-    let json_bytes = json_bytes.strip_prefix(&[0xEF, 0xBB, 0xBF]).unwrap_or(json_bytes);
+    let json_bytes = json_bytes
+        .strip_prefix(&[0xEF, 0xBB, 0xBF])
+        .unwrap_or(json_bytes);
     let json: Value = serde_json::from_slice(json_bytes)
         .map_err(|e| Error::Container(format!("JSON syntax error: {e}")))?;
     if !json.is_object() {

@@ -212,7 +212,8 @@ impl Scene {
         };
         let mut geometry_of: HashMap<(usize, usize), Option<usize>> = HashMap::new();
         let mut visited = vec![false; nodes.len()];
-        let mut stack: Vec<(usize, DMat4)> = roots.iter().rev().map(|&r| (r, DMat4::IDENTITY)).collect();
+        let mut stack: Vec<(usize, DMat4)> =
+            roots.iter().rev().map(|&r| (r, DMat4::IDENTITY)).collect();
         let mut skipped_modes = 0usize;
         let mut triangle_total = 0usize;
         while let Some((ni, parent)) = stack.pop() {
@@ -242,7 +243,10 @@ impl Scene {
             let gpu = node.pointer("/extensions/EXT_mesh_gpu_instancing");
             // The transform of a skinned node is ignored (glTF spec): rest pose.
             let placements: Vec<DMat4> = match gpu {
-                Some(g) => gpu_instances(&doc, g, &what)?.into_iter().map(|m| world * m).collect(),
+                Some(g) => gpu_instances(&doc, g, &what)?
+                    .into_iter()
+                    .map(|m| world * m)
+                    .collect(),
                 None if skinned => vec![DMat4::IDENTITY],
                 None => vec![world],
             };
@@ -318,7 +322,10 @@ impl Scene {
                 )));
             }
         }
-        let mode = prim.get("mode").map_or(Some(4), Value::as_u64).unwrap_or(99);
+        let mode = prim
+            .get("mode")
+            .map_or(Some(4), Value::as_u64)
+            .unwrap_or(99);
         if mode > 6 {
             return Err(Error::Invalid(format!("{what}.mode is invalid")));
         }
@@ -328,7 +335,10 @@ impl Scene {
         let pos_acc = field_usize(&prim["attributes"], "POSITION", &what)?
             .ok_or_else(|| Error::Invalid(format!("{what} has no POSITION attribute")))?;
         let positions: Vec<[f32; 3]> = accessor::read(doc, pos_acc)?.to_f32::<3>(&what)?;
-        if let Some(v) = positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        if let Some(v) = positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
             return Err(Error::Invalid(format!(
                 "{what}: POSITION (accessors[{pos_acc}]) is not finite at vertex {v}"
             )));
@@ -351,7 +361,10 @@ impl Scene {
             )));
         }
         let triangles = triangle_list(mode, &indices);
-        let morphed = prim.get("targets").and_then(Value::as_array).is_some_and(|t| !t.is_empty());
+        let morphed = prim
+            .get("targets")
+            .and_then(Value::as_array)
+            .is_some_and(|t| !t.is_empty());
         self.geometries.push(PrimitiveGeometry {
             mesh: mi,
             primitive: pi,
@@ -375,7 +388,9 @@ impl Scene {
         for inst in &self.instances {
             let g = &self.geometries[inst.geometry];
             for &i in &g.triangles {
-                let p = inst.transform.transform_point3(DVec3::from(g.positions[i as usize].map(f64::from)));
+                let p = inst
+                    .transform
+                    .transform_point3(DVec3::from(g.positions[i as usize].map(f64::from)));
                 lo = lo.min(p);
                 hi = hi.max(p);
             }
@@ -405,7 +420,14 @@ impl Scene {
             let positions: Vec<[f32; 3]> = g
                 .positions
                 .iter()
-                .map(|p| space.to_bake(inst.transform.transform_point3(DVec3::from(p.map(f64::from)))).to_array())
+                .map(|p| {
+                    space
+                        .to_bake(
+                            inst.transform
+                                .transform_point3(DVec3::from(p.map(f64::from))),
+                        )
+                        .to_array()
+                })
                 .collect();
             for t in g.triangles.chunks_exact(3) {
                 let v = [0, 1, 2].map(|k| Vec3A::from(positions[t[k] as usize]));
@@ -418,14 +440,19 @@ impl Scene {
             }
             let linear = DMat3::from_mat4(inst.transform);
             let normal_matrix = linear.inverse().transpose();
-            let normals = g.normals.as_ref().filter(|_| normal_matrix.is_finite()).map(|ns| {
-                ns.iter()
-                    .map(|n| {
-                        let w = (normal_matrix * DVec3::from(n.map(f64::from))).normalize_or_zero();
-                        w.as_vec3().to_array()
-                    })
-                    .collect()
-            });
+            let normals = g
+                .normals
+                .as_ref()
+                .filter(|_| normal_matrix.is_finite())
+                .map(|ns| {
+                    ns.iter()
+                        .map(|n| {
+                            let w =
+                                (normal_matrix * DVec3::from(n.map(f64::from))).normalize_or_zero();
+                            w.as_vec3().to_array()
+                        })
+                        .collect()
+                });
             receivers.push(ReceiverMesh {
                 instance: ii,
                 positions,
@@ -452,9 +479,17 @@ fn gpu_instances(doc: &Document, ext: &Value, what: &str) -> Result<Vec<DMat4>> 
                 let acc = accessor::read(doc, a)?;
                 let dims = acc.dims;
                 let v = match dims {
-                    3 => acc.to_f32::<3>(what)?.into_iter().map(|v| [v[0], v[1], v[2], 0.0]).collect(),
+                    3 => acc
+                        .to_f32::<3>(what)?
+                        .into_iter()
+                        .map(|v| [v[0], v[1], v[2], 0.0])
+                        .collect(),
                     4 => acc.to_f32::<4>(what)?,
-                    _ => return Err(Error::Invalid(format!("{what}: EXT_mesh_gpu_instancing {key} has {dims} components"))),
+                    _ => {
+                        return Err(Error::Invalid(format!(
+                            "{what}: EXT_mesh_gpu_instancing {key} has {dims} components"
+                        )));
+                    }
                 };
                 Ok(Some(v))
             }
@@ -463,17 +498,30 @@ fn gpu_instances(doc: &Document, ext: &Value, what: &str) -> Result<Vec<DMat4>> 
     let t = read("TRANSLATION")?;
     let r = read("ROTATION")?;
     let s = read("SCALE")?;
-    let n = [&t, &r, &s].iter().filter_map(|a| a.as_ref().map(Vec::len)).max().unwrap_or(0);
+    let n = [&t, &r, &s]
+        .iter()
+        .filter_map(|a| a.as_ref().map(Vec::len))
+        .max()
+        .unwrap_or(0);
     let mut out = Vec::with_capacity(n);
     for i in 0..n {
-        let tr = t.as_ref().and_then(|v| v.get(i)).map_or(DVec3::ZERO, |v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
-        let ro = r.as_ref().and_then(|v| v.get(i)).map_or(DQuat::IDENTITY, |v| {
-            DQuat::from_xyzw(v[0] as f64, v[1] as f64, v[2] as f64, v[3] as f64).normalize()
+        let tr = t.as_ref().and_then(|v| v.get(i)).map_or(DVec3::ZERO, |v| {
+            DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
         });
-        let sc = s.as_ref().and_then(|v| v.get(i)).map_or(DVec3::ONE, |v| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64));
+        let ro = r
+            .as_ref()
+            .and_then(|v| v.get(i))
+            .map_or(DQuat::IDENTITY, |v| {
+                DQuat::from_xyzw(v[0] as f64, v[1] as f64, v[2] as f64, v[3] as f64).normalize()
+            });
+        let sc = s.as_ref().and_then(|v| v.get(i)).map_or(DVec3::ONE, |v| {
+            DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
+        });
         let m = DMat4::from_scale_rotation_translation(sc, ro, tr);
         if !m.is_finite() {
-            return Err(Error::Invalid(format!("{what}: EXT_mesh_gpu_instancing instance {i} is not finite")));
+            return Err(Error::Invalid(format!(
+                "{what}: EXT_mesh_gpu_instancing instance {i} is not finite"
+            )));
         }
         out.push(m);
     }

@@ -1,0 +1,145 @@
+//! Builds small glTF scenes in memory for the tests.
+#![allow(dead_code)]
+
+use serde_json::{Value, json};
+
+pub struct MeshSpec {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Option<Vec<[f32; 3]>>,
+    pub indices: Vec<u32>,
+}
+
+/// A quad in the plane spanned by axes `u` and `v` through `origin`,
+/// facing `u x v`.
+pub fn quad(origin: [f32; 3], u: [f32; 3], v: [f32; 3], with_normals: bool) -> MeshSpec {
+    let p = |a: f32, b: f32| [0, 1, 2].map(|k| origin[k] + a * u[k] + b * v[k]);
+    let n = {
+        let c = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+        c.map(|x| x / l)
+    };
+    MeshSpec {
+        positions: vec![p(-1.0, -1.0), p(1.0, -1.0), p(1.0, 1.0), p(-1.0, 1.0)],
+        normals: with_normals.then(|| vec![n; 4]),
+        indices: vec![0, 1, 2, 0, 2, 3],
+    }
+}
+
+/// Merges meshes into one primitive.
+pub fn merge(parts: &[MeshSpec]) -> MeshSpec {
+    let mut out = MeshSpec {
+        positions: vec![],
+        normals: Some(vec![]),
+        indices: vec![],
+    };
+    for p in parts {
+        let base = out.positions.len() as u32;
+        out.positions.extend(&p.positions);
+        match (&mut out.normals, &p.normals) {
+            (Some(o), Some(n)) => o.extend(n),
+            _ => out.normals = None,
+        }
+        out.indices.extend(p.indices.iter().map(|i| i + base));
+    }
+    out
+}
+
+/// Builds a GLB: `meshes` each one primitive; `nodes` as JSON (with "mesh").
+pub fn glb(meshes: &[MeshSpec], nodes: Vec<Value>) -> Vec<u8> {
+    let mut bin: Vec<u8> = Vec::new();
+    let mut views = vec![];
+    let mut accessors = vec![];
+    let mut json_meshes = vec![];
+    let mut push = |bin: &mut Vec<u8>, bytes: &[u8], target: u32| -> usize {
+        let off = bin.len();
+        bin.extend_from_slice(bytes);
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        views.push(
+            json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len(), "target": target}),
+        );
+        views.len() - 1
+    };
+    for m in meshes {
+        let pos: Vec<u8> = m
+            .positions
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let v = push(&mut bin, &pos, 34962);
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for p in &m.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        accessors.push(json!({"bufferView": v, "componentType": 5126, "count": m.positions.len(), "type": "VEC3", "min": lo, "max": hi}));
+        let mut attrs = json!({"POSITION": accessors.len() - 1});
+        if let Some(n) = &m.normals {
+            let b: Vec<u8> = n.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+            let v = push(&mut bin, &b, 34962);
+            accessors.push(
+                json!({"bufferView": v, "componentType": 5126, "count": n.len(), "type": "VEC3"}),
+            );
+            attrs["NORMAL"] = json!(accessors.len() - 1);
+        }
+        let ib: Vec<u8> = m.indices.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let v = push(&mut bin, &ib, 34963);
+        accessors.push(json!({"bufferView": v, "componentType": 5125, "count": m.indices.len(), "type": "SCALAR"}));
+        json_meshes
+            .push(json!({"primitives": [{"attributes": attrs, "indices": accessors.len() - 1}]}));
+    }
+    let roots: Vec<usize> = (0..nodes.len()).collect();
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": "aobake tests"},
+        "scene": 0,
+        "scenes": [{"nodes": roots}],
+        "nodes": nodes,
+        "meshes": json_meshes,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}],
+    });
+    aobake::write::glb_bytes(&doc, &bin)
+}
+
+/// One node per mesh, untransformed.
+pub fn plain_nodes(n: usize) -> Vec<Value> {
+    (0..n).map(|i| json!({"mesh": i})).collect()
+}
+
+pub fn scene(bytes: &[u8]) -> aobake::load::Scene {
+    let doc = aobake::load::container::parse(bytes, std::path::Path::new(".")).expect("parses");
+    aobake::load::Scene::from_document(doc).expect("loads")
+}
+
+/// Settings for small, quick test bakes.
+pub fn settings(resolution: u32, rays: u32, max_distance: Option<f64>) -> aobake::Settings {
+    aobake::Settings {
+        size: aobake::unwrap::AtlasSize::Resolution(resolution),
+        rays,
+        max_distance,
+        progress: false,
+        ..Default::default()
+    }
+}
+
+/// Splits a GLB into JSON and BIN.
+pub fn split(glb: &[u8]) -> (Value, Vec<u8>) {
+    let jl = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let json: Value = serde_json::from_slice(&glb[20..20 + jl]).unwrap();
+    let bin = if glb.len() > 20 + jl {
+        glb[28 + jl..].to_vec()
+    } else {
+        vec![]
+    };
+    (json, bin)
+}
