@@ -1,0 +1,228 @@
+//! Every scene in ../shared/assets either bakes with a valid, lossless output
+//! or is refused with a clear reason. One test per file. Skipped (with a
+//! note) when the shared folder is absent.
+
+mod common;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+fn asset(name: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/assets")
+        .join(name);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("note: {} not found, test skipped", p.display());
+        None
+    }
+}
+
+/// Whether `path` (JSON pointer of the input) may differ in the output.
+fn is_documented_edit(path: &str) -> bool {
+    let parts: Vec<&str> = path.split('/').skip(1).collect();
+    match parts.as_slice() {
+        ["meshes", _, "primitives", _, "attributes", ..]
+        | ["meshes", _, "primitives", _, "indices"]
+        | ["meshes", _, "primitives", _, "mode"]
+        | ["meshes", _, "primitives", _, "material"]
+        | ["nodes", _, "mesh"]
+        | ["buffers", "0", "byteLength"] => true,
+        _ => false,
+    }
+}
+
+/// Every value of `input` is present and equal in `output`, except documented edits.
+fn assert_preserved(input: &Value, output: &Value, path: &str) {
+    if is_documented_edit(path) {
+        return;
+    }
+    match (input, output) {
+        (Value::Object(a), Value::Object(b)) => {
+            for (k, v) in a {
+                let p = format!("{path}/{k}");
+                let o = b.get(k).unwrap_or_else(|| panic!("{p} was dropped"));
+                assert_preserved(v, o, &p);
+            }
+        }
+        (Value::Array(a), Value::Array(b)) => {
+            assert!(b.len() >= a.len(), "{path} lost elements");
+            for (i, v) in a.iter().enumerate() {
+                assert_preserved(v, &b[i], &format!("{path}/{i}"));
+            }
+        }
+        _ => assert_eq!(input, output, "{path} changed"),
+    }
+}
+
+fn view_bytes<'a>(json: &Value, bin: &'a [u8], view: usize) -> &'a [u8] {
+    let v = &json["bufferViews"][view];
+    let o = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+    &bin[o..o + v["byteLength"].as_u64().unwrap() as usize]
+}
+
+/// Runs the Khronos validator when node and tools/validator are installed;
+/// returns (errors, warnings).
+fn validate(path: &Path) -> Option<(u64, u64)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    if !root
+        .join("tools/validator/node_modules/gltf-validator")
+        .exists()
+    {
+        eprintln!(
+            "note: gltf-validator not installed (npm install --prefix tools/validator), validation skipped"
+        );
+        return None;
+    }
+    let out = std::process::Command::new("node")
+        .arg(root.join("tools/validator/validate.mjs"))
+        .arg(path)
+        .output()
+        .ok()?;
+    let line: Value = serde_json::from_slice(&out.stdout).expect("validator prints JSON");
+    Some((
+        line["errors"].as_u64().unwrap(),
+        line["warnings"].as_u64().unwrap(),
+    ))
+}
+
+fn settings(resolution: u32) -> aobake::Settings {
+    common::settings(resolution, 4, None)
+}
+
+fn bakes(name: &str, resolution: u32) {
+    let Some(path) = asset(name) else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.glb");
+    let input_bytes = std::fs::read(&path).unwrap();
+    let report =
+        aobake::run(&path, &out, &settings(resolution)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert!(report.texels > 0);
+    assert_eq!(std::fs::read(&path).unwrap(), input_bytes, "input touched");
+    let glb = std::fs::read(&out).unwrap();
+    let (ij, ibin) = common::split(&input_bytes);
+    let (oj, obin) = common::split(&glb);
+    assert_preserved(&ij, &oj, "");
+    // Original embedded images are byte-identical.
+    for (i, img) in ij["images"].as_array().into_iter().flatten().enumerate() {
+        if let Some(v) = img["bufferView"].as_u64() {
+            assert!(
+                view_bytes(&ij, &ibin, v as usize)
+                    == view_bytes(
+                        &oj,
+                        &obin,
+                        oj["images"][i]["bufferView"].as_u64().unwrap() as usize
+                    )
+            );
+        }
+    }
+    // The contract: extension in extensionsUsed only, every baked primitive
+    // carries TEXCOORD_n and the extension.
+    assert!(
+        oj["extensionsUsed"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e == "AOBAKE_lightmap")
+    );
+    assert!(
+        !oj["extensionsRequired"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .any(|e| e == "AOBAKE_lightmap")
+    );
+    let mut baked = 0;
+    for m in oj["meshes"].as_array().unwrap() {
+        for p in m["primitives"].as_array().unwrap() {
+            if let Some(e) = p.pointer("/extensions/AOBAKE_lightmap") {
+                let n = e["texCoord"].as_u64().unwrap();
+                assert!(p["attributes"][format!("TEXCOORD_{n}")].is_u64());
+                for k in 0..n {
+                    assert!(
+                        p["attributes"][format!("TEXCOORD_{k}")].is_u64(),
+                        "UV sets not consecutive"
+                    );
+                }
+                baked += 1;
+            }
+        }
+    }
+    assert_eq!(baked, report.baked_primitives);
+    // The output loads again.
+    aobake::load::load(&out).unwrap();
+    if let Some((errors, warnings)) = validate(&out) {
+        let (_, in_warnings) = validate(&path).unwrap();
+        assert_eq!(errors, 0, "{name}: validator errors");
+        assert!(
+            warnings <= in_warnings,
+            "{name}: {warnings} validator warnings, input had {in_warnings}"
+        );
+    }
+}
+
+fn refused(name: &str, reason: &str) {
+    let Some(path) = asset(name) else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.glb");
+    let err = aobake::run(&path, &out, &settings(256))
+        .expect_err("must be refused")
+        .to_string();
+    assert!(err.contains(reason), "{name}: {err}");
+    assert!(!err.contains('\n'));
+    assert!(!out.exists(), "partial output left behind");
+}
+
+macro_rules! bake_tests {
+    ($($test:ident: $file:literal at $res:literal;)*) => {$(
+        #[test]
+        fn $test() { bakes($file, $res) }
+    )*};
+}
+
+bake_tests! {
+    boombox_tiny_scale: "boombox_tiny_scale.glb" at 256;
+    cornell_box: "cornell_box.glb" at 256;
+    dense_city_diorama: "dense_city_diorama.glb" at 1024;
+    flight_helmet: "flight_helmet.glb" at 512;
+    foliage_tree_cesium: "foliage_tree_cesium.glb" at 256;
+    lantern_quantized: "lantern_quantized.glb" at 256;
+    mixed_lighting_sheen_chair: "mixed_lighting_sheen_chair.glb" at 512;
+    negative_scale_floor: "negative_scale_floor.glb" at 256;
+    mode_04_tristrip_nonindexed: "primitive_mode_04_tristrip_nonindexed.glb" at 64;
+    mode_05_trifan_nonindexed: "primitive_mode_05_trifan_nonindexed.glb" at 64;
+    mode_06_triangles_nonindexed: "primitive_mode_06_triangles_nonindexed.glb" at 64;
+    mode_11_tristrip_indexed: "primitive_mode_11_tristrip_indexed.glb" at 64;
+    mode_12_trifan_indexed: "primitive_mode_12_trifan_indexed.glb" at 64;
+    mode_14_triangles_u8_indices: "primitive_mode_14_triangles_u8_indices.glb" at 64;
+    simple_meshes_shared_mesh: "simple_meshes_shared_mesh.glb" at 64;
+    simple_sparse_accessor: "simple_sparse_accessor.glb" at 64;
+    sponza_dabrovic: "sponza_dabrovic.glb" at 512;
+    thin_cloth_curtains: "thin_cloth_curtains_intel_sponza.glb" at 1024;
+    tricky_fern_mask_without_alpha: "tricky_fern_mask_without_alpha.glb" at 512;
+    two_cylinder_engine: "two_cylinder_engine.glb" at 512;
+}
+
+#[test]
+fn lantern_draco_is_refused() {
+    refused("lantern_draco.glb", "KHR_draco_mesh_compression");
+}
+#[test]
+fn points_are_refused() {
+    refused("primitive_mode_00_points.glb", "no triangle primitive");
+}
+#[test]
+fn lines_are_refused() {
+    refused("primitive_mode_01_lines.glb", "no triangle primitive");
+}
+#[test]
+fn skinned_only_is_refused() {
+    refused("fox_skinned.glb", "skinned, morphed or GPU-instanced");
+}
+#[test]
+fn gpu_instancing_only_is_refused() {
+    refused(
+        "gpu_instancing_ext.glb",
+        "skinned, morphed or GPU-instanced",
+    );
+}
