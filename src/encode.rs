@@ -52,7 +52,7 @@ pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Ligh
     for &t in &receivers.texel {
         covered[t as usize] = true;
     }
-    let pick = |t: &u32| (*t != NONE).then(|| *t as usize);
+    let pick = |t: &u32| (*t != NONE).then_some(*t as usize);
     Ok(Lightmap {
         width: receivers.width,
         height: receivers.height,

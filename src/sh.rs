@@ -84,9 +84,9 @@ mod tests {
     fn open_hemisphere_matches_numeric_projection() {
         let n = Vec3::new(0.3, -0.5, 0.8).normalize();
         let c = open_hemisphere(n);
-        for i in 0..SH_COUNT {
+        for (i, &ci) in c.iter().enumerate() {
             let v = integrate(|w| (n.dot(w).max(0.0) * basis(w)[i]) as f64) / std::f64::consts::PI;
-            assert!((v - c[i] as f64).abs() < 2e-3, "c{i}: {v} vs {}", c[i]);
+            assert!((v - ci as f64).abs() < 2e-3, "c{i}: {v} vs {ci}");
         }
     }
 }

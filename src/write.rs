@@ -51,7 +51,7 @@ impl Bin {
         stride: Option<usize>,
         target: Option<u32>,
     ) -> usize {
-        while self.data.len() % 4 != 0 {
+        while !self.data.len().is_multiple_of(4) {
             self.data.push(0);
         }
         let mut view =
@@ -520,7 +520,7 @@ fn assign_materials(json: &mut Value, occlusion_tex: usize, mode: OcclusionMode)
 /// Serializes JSON and BIN into a GLB container.
 pub fn glb_bytes(json: &Value, bin: &[u8]) -> Vec<u8> {
     let mut text = serde_json::to_vec(json).expect("JSON serializes");
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let bin_len = bin.len().next_multiple_of(4);

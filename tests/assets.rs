@@ -21,15 +21,15 @@ fn asset(name: &str) -> Option<PathBuf> {
 /// Whether `path` (JSON pointer of the input) may differ in the output.
 fn is_documented_edit(path: &str) -> bool {
     let parts: Vec<&str> = path.split('/').skip(1).collect();
-    match parts.as_slice() {
+    matches!(
+        parts.as_slice(),
         ["meshes", _, "primitives", _, "attributes", ..]
-        | ["meshes", _, "primitives", _, "indices"]
-        | ["meshes", _, "primitives", _, "mode"]
-        | ["meshes", _, "primitives", _, "material"]
-        | ["nodes", _, "mesh"]
-        | ["buffers", "0", "byteLength"] => true,
-        _ => false,
-    }
+            | ["meshes", _, "primitives", _, "indices"]
+            | ["meshes", _, "primitives", _, "mode"]
+            | ["meshes", _, "primitives", _, "material"]
+            | ["nodes", _, "mesh"]
+            | ["buffers", "0", "byteLength"]
+    )
 }
 
 /// Every value of `input` is present and equal in `output`, except documented edits.

@@ -57,7 +57,7 @@ pub fn glb(meshes: &[MeshSpec], nodes: Vec<Value>) -> Vec<u8> {
     let mut push = |bin: &mut Vec<u8>, bytes: &[u8], target: u32| -> usize {
         let off = bin.len();
         bin.extend_from_slice(bytes);
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         views.push(
