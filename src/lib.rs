@@ -20,4 +20,4 @@ pub mod unwrap;
 pub mod write;
 
 pub use error::{Error, Result};
-pub use pipeline::{Method, Report, Settings, bake_file, bake_scene, run};
+pub use pipeline::{Method, Report, Settings, UvSource, bake_file, bake_scene, run};

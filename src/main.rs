@@ -1,6 +1,6 @@
 //! The `aobake` command line.
 
-use aobake::pipeline::{self, Method, Settings};
+use aobake::pipeline::{self, Method, Settings, UvSource};
 use aobake::unwrap::{AtlasSize, Packing};
 use aobake::write::OcclusionMode;
 use clap::{Parser, ValueEnum};
@@ -19,6 +19,14 @@ enum PackingArg {
     Fast,
     /// Charts nested by shape: densest, slow with thousands of charts.
     Shape,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum UvArg {
+    /// Unwrap into a new atlas and add a TEXCOORD_n.
+    Generate,
+    /// Reuse the lightmap UV set given by --uv-set.
+    Existing,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -58,6 +66,12 @@ struct Cli {
     /// Empty texels around each chart.
     #[arg(long, default_value_t = 2)]
     padding: u32,
+    /// Lightmap UVs: generate new ones, or reuse an existing set.
+    #[arg(long, value_enum, default_value_t = UvArg::Generate)]
+    uv: UvArg,
+    /// The TEXCOORD set reused by --uv existing.
+    #[arg(long, default_value_t = 1)]
+    uv_set: usize,
     /// Chart packing.
     #[arg(long, value_enum, default_value_t = PackingArg::Fast)]
     packing: PackingArg,
@@ -104,6 +118,10 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         packing: match cli.packing {
             PackingArg::Fast => Packing::Fast,
             PackingArg::Shape => Packing::Shape,
+        },
+        uv: match cli.uv {
+            UvArg::Generate => UvSource::Generate,
+            UvArg::Existing => UvSource::Existing(cli.uv_set),
         },
         method: match cli.method {
             MethodArg::Mc => Method::Mc,

@@ -38,12 +38,23 @@ impl Method {
     }
 }
 
+/// Where the lightmap UVs come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum UvSource {
+    /// Unwrap every baked placement into a new atlas (new TEXCOORD_n).
+    #[default]
+    Generate,
+    /// Reuse `TEXCOORD_<set>` as it is.
+    Existing(usize),
+}
+
 /// Everything a bake can be told.
 #[derive(Clone, Debug)]
 pub struct Settings {
     pub size: AtlasSize,
     pub padding: u32,
     pub packing: Packing,
+    pub uv: UvSource,
     pub method: Method,
     pub rays: u32,
     /// World units; `None`: [`DEFAULT_MAX_DISTANCE_FRACTION`] of the diagonal.
@@ -61,6 +72,7 @@ impl Default for Settings {
             size: AtlasSize::Resolution(1024),
             padding: 2,
             packing: Packing::Fast,
+            uv: UvSource::Generate,
             method: Method::Mc,
             rays: 256,
             max_distance: None,
@@ -209,17 +221,39 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         None => DEFAULT_MAX_DISTANCE_FRACTION * diagonal,
     };
     t.lap("prepare");
-    let atlas = unwrap::unwrap(
-        &geometry.receivers,
-        &UnwrapOptions {
-            size: s.size,
-            padding: s.padding,
-            packing: s.packing,
-        },
-        diagonal,
-    )?;
+    let atlas = match (s.uv, s.size) {
+        (UvSource::Generate, size) => {
+            let options = UnwrapOptions {
+                size,
+                padding: s.padding,
+                packing: s.packing,
+            };
+            unwrap::unwrap(&geometry.receivers, &options, diagonal)?
+        }
+        (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
+            unwrap::existing(scene, &geometry.receivers, set, r)?
+        }
+        (UvSource::Existing(_), AtlasSize::TexelDensity(_)) => {
+            return Err(Error::Option(
+                "--texel-density needs generated UVs; give --resolution with --uv existing".into(),
+            ));
+        }
+    };
     t.lap("unwrap");
     let receivers = rasterize::rasterize(&geometry.receivers, &atlas);
+    if let (UvSource::Existing(set), Some((a, b))) = (s.uv, receivers.first_overlap) {
+        let name = |k: u32| {
+            let g = &scene.geometries
+                [scene.instances[geometry.receivers[k as usize].instance].geometry];
+            format!("meshes[{}].primitives[{}]", g.mesh, g.primitive)
+        };
+        return Err(Error::Option(format!(
+            "TEXCOORD_{set} of {} and {} overlap ({} texels): --uv existing needs one shared, non-overlapping lightmap layout; use --uv generate",
+            name(a),
+            name(b),
+            receivers.overlapping_texels
+        )));
+    }
     if receivers.is_empty() {
         return Err(Error::Empty(
             "no texel is covered: every baked triangle is degenerate".into(),
@@ -256,7 +290,21 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         width: atlas.width,
         height: atlas.height,
     };
-    let glb = write::build_glb(scene, &geometry, &atlas, &encoded, &record, s.occlusion)?;
+    let existing_uv = match s.uv {
+        UvSource::Existing(set) => Some(set),
+        UvSource::Generate => None,
+    };
+    let mut warnings = scene.warnings.clone();
+    let glb = write::build_glb(
+        scene,
+        &geometry,
+        &atlas,
+        &encoded,
+        &record,
+        s.occlusion,
+        existing_uv,
+        &mut warnings,
+    )?;
     t.lap("write");
     let trace_s = t.seconds("trace");
     let report = Report {
@@ -281,7 +329,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         threads: rayon::current_num_threads(),
         total_seconds: t.start.elapsed().as_secs_f64(),
         stages: t.stages,
-        warnings: scene.warnings.clone(),
+        warnings,
     };
     Ok(Baked {
         geometry,

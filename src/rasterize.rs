@@ -34,6 +34,11 @@ pub struct Receivers {
     pub geo_normal: Vec<Vec3>,
     /// Texel edge length at the receiver, bake units.
     pub footprint: Vec<f32>,
+    /// Texels whose centre lies inside triangles of two different receiver
+    /// meshes (overlapping UVs; always 0 for generated atlases), and the
+    /// first such pair of receiver-mesh indices.
+    pub overlapping_texels: usize,
+    pub first_overlap: Option<(u32, u32)>,
 }
 
 impl Receivers {
@@ -47,6 +52,7 @@ impl Receivers {
 
 /// A triangle ready to rasterize.
 struct RasterTri {
+    mesh: u32,
     uv: [Vec2; 3],
     pos: [Vec3; 3],
     nrm: Option<[Vec3; 3]>,
@@ -116,7 +122,7 @@ fn inside(p: Vec2, t: &[Vec2; 3]) -> bool {
 fn build_triangles(meshes: &[ReceiverMesh], atlas: &Atlas) -> Vec<RasterTri> {
     let (w, h) = (atlas.width as f32, atlas.height as f32);
     let mut tris = Vec::new();
-    for (m, c) in meshes.iter().zip(&atlas.meshes) {
+    for (mi, (m, c)) in meshes.iter().zip(&atlas.meshes).enumerate() {
         for t in c.triangles.chunks_exact(3) {
             let uv = [0, 1, 2].map(|k| {
                 let u = c.uv[t[k] as usize];
@@ -137,6 +143,7 @@ fn build_triangles(meshes: &[ReceiverMesh], atlas: &Atlas) -> Vec<RasterTri> {
             }
             let nrm = m.normals.as_ref().map(|n| src.map(|i| Vec3::from(n[i])));
             tris.push(RasterTri {
+                mesh: mi as u32,
                 uv,
                 pos,
                 nrm,
@@ -175,6 +182,8 @@ pub fn rasterize(meshes: &[ReceiverMesh], atlas: &Atlas) -> Receivers {
         ..Default::default()
     };
     for r in per_band {
+        out.overlapping_texels += r.overlapping_texels;
+        out.first_overlap = out.first_overlap.or(r.first_overlap);
         out.texel.extend(r.texel);
         out.position.extend(r.position);
         out.normal.extend(r.normal);
@@ -192,6 +201,7 @@ fn rasterize_band(tris: &[RasterTri], list: &[u32], band: u32, w: u32, h: u32) -
     let mut best: Vec<(f32, u32, [f32; 3])> =
         vec![(f32::INFINITY, u32::MAX, [0.0; 3]); rows * w as usize];
     let reach2 = CONSERVATIVE_REACH * CONSERVATIVE_REACH;
+    let mut out = Receivers::default();
     for &ti in list {
         let t = &tris[ti as usize];
         let lo = t.uv.iter().fold(Vec2::INFINITY, |a, &p| a.min(p)) - CONSERVATIVE_REACH;
@@ -210,13 +220,17 @@ fn rasterize_band(tris: &[RasterTri], list: &[u32], band: u32, w: u32, h: u32) -
                     closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2])
                 };
                 let slot = &mut best[(y - y0) as usize * w as usize + x as usize];
+                if d2 == 0.0 && slot.0 == 0.0 && tris[slot.1 as usize].mesh != t.mesh {
+                    out.overlapping_texels += 1;
+                    out.first_overlap
+                        .get_or_insert((tris[slot.1 as usize].mesh, t.mesh));
+                }
                 if d2 <= reach2 && d2 < slot.0 {
                     *slot = (d2, ti, bary);
                 }
             }
         }
     }
-    let mut out = Receivers::default();
     for (i, &(d2, ti, b)) in best.iter().enumerate() {
         if !d2.is_finite() {
             continue;

@@ -8,7 +8,8 @@
 //! swapped.
 
 use crate::error::{Error, Result};
-use crate::load::ReceiverMesh;
+use crate::load::{ReceiverMesh, Scene, accessor};
+use std::collections::HashMap;
 
 /// Largest atlas edge in texels (a 16k x 16k page with SH is ~6 GiB of floats).
 pub const MAX_ATLAS_EDGE: u32 = 16384;
@@ -126,5 +127,73 @@ pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -
                 triangles: m.indices,
             })
             .collect(),
+    })
+}
+
+/// Builds the atlas from an existing UV set `set` (`TEXCOORD_set`) of every
+/// baked primitive instead of unwrapping: the page is `resolution` square,
+/// vertices are not split. Fails, naming the primitive, if a primitive lacks
+/// the set, has UVs outside [0, 1] or non-finite, or is placed by several
+/// nodes (they would share one lightmap region).
+pub fn existing(
+    scene: &Scene,
+    meshes: &[ReceiverMesh],
+    set: usize,
+    resolution: u32,
+) -> Result<Atlas> {
+    if !(16..=MAX_ATLAS_EDGE).contains(&resolution) {
+        return Err(Error::Option(format!(
+            "--resolution {resolution} is outside 16..={MAX_ATLAS_EDGE}"
+        )));
+    }
+    let mut placements: HashMap<usize, usize> = HashMap::new();
+    for m in meshes {
+        *placements
+            .entry(scene.instances[m.instance].geometry)
+            .or_default() += 1;
+    }
+    let mut out = Vec::with_capacity(meshes.len());
+    for m in meshes {
+        let g = &scene.geometries[scene.instances[m.instance].geometry];
+        let what = format!("meshes[{}].primitives[{}]", g.mesh, g.primitive);
+        if placements[&scene.instances[m.instance].geometry] > 1 {
+            return Err(Error::Option(format!(
+                "{what} is placed by several nodes, which would share one lightmap region; use generated UVs (--uv generate)"
+            )));
+        }
+        let prim = &scene.doc.json["meshes"][g.mesh]["primitives"][g.primitive];
+        let acc = prim["attributes"][format!("TEXCOORD_{set}")]
+            .as_u64()
+            .ok_or_else(|| {
+                Error::Option(format!("{what} has no TEXCOORD_{set} for --uv existing"))
+            })?;
+        let uv = accessor::read(&scene.doc, acc as usize)?.to_f32::<2>(&what)?;
+        if uv.len() != m.positions.len() {
+            return Err(Error::Invalid(format!(
+                "{what}: TEXCOORD_{set} and POSITION counts differ"
+            )));
+        }
+        if let Some((v, p)) = uv
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !p.iter().all(|c| c.is_finite() && (0.0..=1.0).contains(c)))
+        {
+            return Err(Error::Invalid(format!(
+                "{what}: TEXCOORD_{set} vertex {v} is ({}, {}), outside [0, 1]; --uv existing needs a lightmap UV set inside the unit square",
+                p[0], p[1]
+            )));
+        }
+        out.push(ChartedMesh {
+            xref: (0..m.positions.len() as u32).collect(),
+            uv,
+            triangles: m.triangles.clone(),
+        });
+    }
+    Ok(Atlas {
+        width: resolution,
+        height: resolution,
+        charts: 0,
+        utilization: 0.0,
+        meshes: out,
     })
 }

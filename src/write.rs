@@ -252,6 +252,8 @@ pub fn build_glb(
     encoded: &Encoded,
     record: &BakeRecord,
     occlusion: OcclusionMode,
+    existing_uv: Option<usize>,
+    warnings: &mut Vec<String>,
 ) -> Result<Vec<u8>> {
     let doc = &scene.doc;
     let mut json = doc.json.clone();
@@ -316,6 +318,18 @@ pub fn build_glb(
         let charted = &atlas.meshes[k];
         let what = format!("meshes[{}].primitives[{}]", g.mesh, g.primitive);
         let mut prim = doc.json["meshes"][g.mesh]["primitives"][g.primitive].clone();
+        if let Some(set) = existing_uv {
+            let mut ext = prim_ext.clone();
+            ext["texCoord"] = json!(set);
+            set_extension(&mut prim, ext);
+            edits.push(PrimitiveEdit {
+                node: inst.node,
+                mesh: g.mesh,
+                primitive: g.primitive,
+                json: prim,
+            });
+            continue;
+        }
         let attrs = prim["attributes"]
             .as_object()
             .ok_or_else(|| Error::Invalid(format!("{what}.attributes is not an object")))?
@@ -349,6 +363,11 @@ pub fn build_glb(
         let tex_coord = (0..)
             .find(|n| !attrs.contains_key(&format!("TEXCOORD_{n}")))
             .unwrap_or(0);
+        if tex_coord > 3 {
+            warnings.push(format!(
+                "{what}: the lightmap UVs are TEXCOORD_{tex_coord}; several engines read only TEXCOORD_0..3"
+            ));
+        }
         let uv: Vec<f32> = charted.uv.iter().flatten().copied().collect();
         let uv_acc = f32_accessor(&mut json, &mut bin, &uv, "VEC2", 2);
         new_attrs.insert(format!("TEXCOORD_{tex_coord}"), json!(uv_acc));
@@ -364,9 +383,7 @@ pub fn build_glb(
         }
         let mut ext = prim_ext.clone();
         ext["texCoord"] = json!(tex_coord);
-        let obj = prim.as_object_mut().expect("primitive is an object");
-        let exts = obj.entry("extensions").or_insert_with(|| json!({}));
-        exts[EXTENSION] = ext;
+        set_extension(&mut prim, ext);
         edits.push(PrimitiveEdit {
             node: inst.node,
             mesh: g.mesh,
@@ -400,6 +417,13 @@ pub fn build_glb(
     }
     json["buffers"][0]["byteLength"] = json!(bin.data.len());
     Ok(glb_bytes(&json, &bin.data))
+}
+
+/// Sets `extensions.AOBAKE_lightmap` of a primitive, keeping other extensions.
+fn set_extension(prim: &mut Value, ext: Value) {
+    let obj = prim.as_object_mut().expect("primitive is an object");
+    let exts = obj.entry("extensions").or_insert_with(|| json!({}));
+    exts[EXTENSION] = ext;
 }
 
 /// Makes room for the GLB BIN buffer at `buffers[0]`, shifting references.

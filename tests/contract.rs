@@ -1,0 +1,206 @@
+//! The output contract and file safety: encoded textures decode to the baked
+//! coefficients, `--uv existing` reuses a UV set, failures leave nothing.
+
+mod common;
+use common::*;
+use serde_json::Value;
+use std::path::Path;
+
+fn wall_scene() -> Vec<u8> {
+    let recv = quad([0.0; 3], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true);
+    let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 0.5, 0.0], true);
+    glb(&[recv, wall], plain_nodes(2))
+}
+
+fn png_channels(json: &Value, bin: &[u8], texture: u64) -> (u32, u32, Vec<u8>, usize) {
+    let image = json["textures"][texture as usize]["source"]
+        .as_u64()
+        .unwrap() as usize;
+    let view = &json["bufferViews"][json["images"][image]["bufferView"].as_u64().unwrap() as usize];
+    let o = view["byteOffset"].as_u64().unwrap() as usize;
+    let bytes = &bin[o..o + view["byteLength"].as_u64().unwrap() as usize];
+    let img = image::load_from_memory(bytes).unwrap();
+    let channels = img.color().channel_count() as usize;
+    (img.width(), img.height(), img.into_bytes(), channels)
+}
+
+#[test]
+fn encoded_textures_decode_to_the_baked_coefficients() {
+    let b = aobake::bake_scene(&scene(&wall_scene()), &settings(64, 64, Some(1.0))).unwrap();
+    let (json, bin) = split(&b.glb);
+    let prim = &json["meshes"][0]["primitives"][0];
+    let ext = &prim["extensions"]["AOBAKE_lightmap"];
+    let scale: Vec<f32> = ext["shScale"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap() as f32)
+        .collect();
+    let offset: Vec<f32> = ext["shOffset"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap() as f32)
+        .collect();
+    let (w, h, ao, ch) = png_channels(&json, &bin, ext["occlusion"]["index"].as_u64().unwrap());
+    assert_eq!((w, h, ch), (b.lightmap.width, b.lightmap.height, 1));
+    let pages: Vec<_> = (0..3)
+        .map(|p| png_channels(&json, &bin, ext["sh"][p]["index"].as_u64().unwrap()))
+        .collect();
+    assert!(pages.iter().all(|p| p.3 == 4));
+    let mut occluded = 0;
+    for t in 0..(w * h) as usize {
+        assert!((ao[t] as f32 / 255.0 - b.lightmap.ao[t]).abs() <= 0.5 / 255.0 + 1e-6);
+        if b.lightmap.covered[t] && b.lightmap.ao[t] < 0.9 {
+            occluded += 1;
+        }
+        for i in 0..9 {
+            let channel = pages[i / 4].2[t * 4 + i % 4] as f32 / 255.0;
+            let c = scale[i] * channel + offset[i];
+            assert!(
+                (c - b.lightmap.sh[t][i]).abs() <= scale[i] * 0.5 / 255.0 + 1e-5,
+                "texel {t} c{i}"
+            );
+        }
+        // c0 = 0.282095 AO exactly, per the definitions.
+        assert!((b.lightmap.sh[t][0] - 0.282_094_8 * b.lightmap.ao[t]).abs() < 1e-5);
+    }
+    assert!(occluded > 50, "the wall must darken part of the floor");
+    // The material shows the AO through the core occlusionTexture.
+    let mat = &json["materials"][prim["material"].as_u64().unwrap() as usize];
+    assert_eq!(mat["occlusionTexture"]["index"], ext["occlusion"]["index"]);
+    assert_eq!(mat["occlusionTexture"]["texCoord"], ext["texCoord"]);
+    assert_eq!(json["extensions"]["AOBAKE_lightmap"]["version"], 1);
+    assert!(
+        (json["extensions"]["AOBAKE_lightmap"]["maxDistance"]
+            .as_f64()
+            .unwrap()
+            - 1.0)
+            .abs()
+            < 1e-12
+    );
+}
+
+#[test]
+fn rebake_into_existing_uvs_reproduces_the_bake() {
+    let s = settings(64, 256, Some(1.0));
+    let first = aobake::bake_scene(&scene(&wall_scene()), &s).unwrap();
+    let n = 0; // the quads had no UVs: the generated set is TEXCOORD_0
+    let again = aobake::bake_scene(
+        &scene(&first.glb),
+        &aobake::Settings {
+            uv: aobake::UvSource::Existing(n),
+            ..s.clone()
+        },
+    )
+    .unwrap();
+    let (json, _) = split(&again.glb);
+    let p = &json["meshes"][0]["primitives"][0];
+    assert_eq!(p["extensions"]["AOBAKE_lightmap"]["texCoord"], n);
+    assert!(p["attributes"].get("TEXCOORD_1").is_none(), "no new UV set");
+    // Same layout on a square page (the first atlas was cropped to its used
+    // rows): compare at the same UV position.
+    let (a, f) = (&again.lightmap, &first.lightmap);
+    assert_eq!((a.width, a.height), (64, 64));
+    let mut diff = 0.0f64;
+    let mut count = 0;
+    for t in 0..a.ao.len() {
+        let (x, y) = (t % 64, t / 64);
+        let v = (y as f32 + 0.5) / 64.0;
+        let fy = (v * f.height as f32) as usize;
+        let ft = fy * f.width as usize + x;
+        if a.covered[t] && fy < f.height as usize && f.covered[ft] {
+            diff += (a.ao[t] - f.ao[ft]).abs() as f64;
+            count += 1;
+        }
+    }
+    assert!(count > 500);
+    assert!(
+        diff / (count as f64) < 0.01,
+        "mean |AO diff| {}",
+        diff / count as f64
+    );
+}
+
+#[test]
+fn overlapping_existing_uvs_are_refused() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cornell_box.glb");
+    let err = aobake::bake_file(
+        &path,
+        &aobake::Settings {
+            uv: aobake::UvSource::Existing(1),
+            ..settings(64, 4, None)
+        },
+    )
+    .err()
+    .expect("refused")
+    .to_string();
+    assert!(
+        err.contains("overlap") && err.contains("TEXCOORD_1"),
+        "{err}"
+    );
+    let err = aobake::bake_file(
+        &path,
+        &aobake::Settings {
+            uv: aobake::UvSource::Existing(5),
+            ..settings(64, 4, None)
+        },
+    )
+    .err()
+    .expect("refused")
+    .to_string();
+    assert!(err.contains("no TEXCOORD_5"), "{err}");
+}
+
+#[test]
+fn output_equal_to_input_is_refused_and_input_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("scene.glb");
+    std::fs::write(&p, wall_scene()).unwrap();
+    let before = std::fs::read(&p).unwrap();
+    let err = aobake::run(&p, &p, &settings(32, 4, None))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("is the input file"), "{err}");
+    assert_eq!(std::fs::read(&p).unwrap(), before);
+    let err = aobake::run(&p, &dir.path().join("./scene.glb"), &settings(32, 4, None)).unwrap_err();
+    assert!(err.to_string().contains("is the input file"));
+}
+
+#[test]
+fn failed_write_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("scene.glb");
+    std::fs::write(&p, wall_scene()).unwrap();
+    let out = dir.path().join("no_such_dir/out.glb");
+    let err = aobake::run(&p, &out, &settings(32, 4, None))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("no_such_dir"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+}
+
+#[test]
+fn cli_reports_one_line_errors_and_nonzero_exit() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.glb");
+    std::fs::write(&bad, b"glTF\x02\x00\x00\x00\xff\xff\x00\x00").unwrap();
+    let out = dir.path().join("out.glb");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_aobake"))
+        .arg(&bad)
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let stderr = String::from_utf8(run.stderr).unwrap();
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("aobake: error: invalid glTF container: GLB truncated"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}
