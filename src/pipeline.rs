@@ -12,7 +12,7 @@ use crate::mc::{self, Bake, McSettings};
 use crate::rasterize::{self, Receivers};
 use crate::trace::Tracer;
 use crate::unwrap::{self, Atlas, AtlasSize, Packing, UnwrapOptions};
-use crate::write::{self, BakeRecord, OcclusionMode};
+use crate::write::{self, BakeRecord, OcclusionMode, OutputOptions};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -282,29 +282,23 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         encode::write_exr(&lightmap, &dir.join("lightmap.exr"))?;
     }
     t.lap("encode");
-    let record = BakeRecord {
-        method: s.method.name().to_string(),
-        rays: s.rays,
-        seed: s.seed,
-        max_distance: max_distance_world,
-        width: atlas.width,
-        height: atlas.height,
-    };
-    let existing_uv = match s.uv {
-        UvSource::Existing(set) => Some(set),
-        UvSource::Generate => None,
+    let options = OutputOptions {
+        record: BakeRecord {
+            method: s.method.name().to_string(),
+            rays: s.rays,
+            seed: s.seed,
+            max_distance: max_distance_world,
+            width: atlas.width,
+            height: atlas.height,
+        },
+        occlusion: s.occlusion,
+        existing_uv: match s.uv {
+            UvSource::Existing(set) => Some(set),
+            UvSource::Generate => None,
+        },
     };
     let mut warnings = scene.warnings.clone();
-    let glb = write::build_glb(
-        scene,
-        &geometry,
-        &atlas,
-        &encoded,
-        &record,
-        s.occlusion,
-        existing_uv,
-        &mut warnings,
-    )?;
+    let glb = write::build_glb(scene, &geometry, &atlas, &encoded, &options, &mut warnings)?;
     t.lap("write");
     let trace_s = t.seconds("trace");
     let report = Report {

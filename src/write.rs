@@ -236,6 +236,15 @@ pub struct BakeRecord {
     pub height: u32,
 }
 
+/// How the bake is written.
+#[derive(Clone, Debug)]
+pub struct OutputOptions {
+    pub record: BakeRecord,
+    pub occlusion: OcclusionMode,
+    /// Bake into this existing TEXCOORD set instead of a generated one.
+    pub existing_uv: Option<usize>,
+}
+
 /// A baked primitive's new JSON, before it is placed into a mesh.
 struct PrimitiveEdit {
     node: usize,
@@ -250,12 +259,11 @@ pub fn build_glb(
     geometry: &BakeGeometry,
     atlas: &Atlas,
     encoded: &Encoded,
-    record: &BakeRecord,
-    occlusion: OcclusionMode,
-    existing_uv: Option<usize>,
+    options: &OutputOptions,
     warnings: &mut Vec<String>,
 ) -> Result<Vec<u8>> {
     let doc = &scene.doc;
+    let record = &options.record;
     let mut json = doc.json.clone();
     let mut bin = if doc.glb_bin {
         let len = json["buffers"][0]["byteLength"].as_u64().unwrap_or(0) as usize;
@@ -318,7 +326,7 @@ pub fn build_glb(
         let charted = &atlas.meshes[k];
         let what = format!("meshes[{}].primitives[{}]", g.mesh, g.primitive);
         let mut prim = doc.json["meshes"][g.mesh]["primitives"][g.primitive].clone();
-        if let Some(set) = existing_uv {
+        if let Some(set) = options.existing_uv {
             let mut ext = prim_ext.clone();
             ext["texCoord"] = json!(set);
             set_extension(&mut prim, ext);
@@ -393,7 +401,7 @@ pub fn build_glb(
     }
 
     place_primitives(&mut json, edits.as_slice())?;
-    assign_materials(&mut json, occlusion_tex, occlusion);
+    assign_materials(&mut json, occlusion_tex, options.occlusion);
 
     // Root extension.
     let obj = json.as_object_mut().expect("root");

@@ -1,4 +1,5 @@
 //! The output contract and file safety: encoded textures decode to the baked
+#![allow(clippy::needless_range_loop)]
 //! coefficients, `--uv existing` reuses a UV set, failures leave nothing.
 
 mod common;

@@ -1,5 +1,5 @@
 //! Builds small glTF scenes in memory for the tests.
-#![allow(dead_code)]
+#![allow(dead_code, clippy::needless_range_loop)]
 
 use serde_json::{Value, json};
 
