@@ -1,6 +1,6 @@
 //! The output contract and file safety: encoded textures decode to the baked
-#![allow(clippy::needless_range_loop)]
 //! coefficients, `--uv existing` reuses a UV set, failures leave nothing.
+#![allow(clippy::needless_range_loop)]
 
 mod common;
 use common::*;
