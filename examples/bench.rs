@@ -8,9 +8,12 @@
 use aobake::load;
 use aobake::mc::{self, McSettings};
 use aobake::pipeline::DEFAULT_MAX_DISTANCE_FRACTION;
-use aobake::rasterize;
-use aobake::trace::Tracer;
+use aobake::rasterize::{self, Receivers};
+use aobake::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};
+use aobake::trace::{Tracer, offset_origin};
 use aobake::unwrap::{self, AtlasSize, Packing, UnwrapOptions};
+use rayon::prelude::*;
+use std::io::Write;
 use std::time::Instant;
 
 fn rmse(a: &[f32], b: &[f32]) -> f64 {
@@ -20,6 +23,33 @@ fn rmse(a: &[f32], b: &[f32]) -> f64 {
         .sum::<f64>()
         / a.len() as f64)
         .sqrt()
+}
+
+/// The first `per` rays of every `stride`-th receiver, as the MC baker casts
+/// them: [ox, oy, oz, dx, dy, dz, t_max] in bake space.
+fn sample_rays(r: &Receivers, per: u32, stride: usize, t_max: f32) -> Vec<[f32; 10]> {
+    (0..r.len())
+        .step_by(stride)
+        .flat_map(|i| {
+            let frame = Frame::from_normal(r.normal[i]);
+            let o = offset_origin(r.position[i], r.geo_normal[i], r.footprint[i]);
+            let g = r.geo_normal[i];
+            let seed = receiver_seed(1, r.texel[i] as u64, 0);
+            (0..per).map(move |k| {
+                let d = frame
+                    .to_world(cosine_hemisphere(sobol_2d(k, seed)))
+                    .normalize();
+                [o.x, o.y, o.z, d.x, d.y, d.z, t_max, g.x, g.y, g.z]
+            })
+        })
+        .collect()
+}
+
+fn write_f32(path: &std::path::Path, data: &[f32]) {
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    for v in data {
+        f.write_all(&v.to_le_bytes()).unwrap();
+    }
 }
 
 fn main() {
@@ -85,6 +115,68 @@ fn main() {
         ("BVH build", t_bvh),
     ] {
         println!("| {s} | {v:.3} |");
+    }
+
+    if let Some(dir) = args
+        .iter()
+        .position(|a| a == "--dump-rays")
+        .and_then(|i| args.get(i + 1))
+    {
+        // 2M of the bake's own rays, for tools/embree_compare.py.
+        let dir = std::path::Path::new(dir);
+        std::fs::create_dir_all(dir).unwrap();
+        let stride = (receivers.len() * 16 / 2_000_000).max(1);
+        let rays = sample_rays(&receivers, 16, stride, DEFAULT_MAX_DISTANCE_FRACTION as f32);
+        let tris: Vec<f32> = geometry
+            .occluders
+            .iter()
+            .flat_map(|t| t.iter().flat_map(|v| v.to_array()))
+            .collect();
+        write_f32(&dir.join("tris.f32"), &tris);
+        write_f32(
+            &dir.join("rays.f32"),
+            &rays.iter().flatten().copied().collect::<Vec<_>>(),
+        );
+        let trace = |rays: &[[f32; 10]]| {
+            let t = Instant::now();
+            let hits: usize = rays
+                .par_chunks(4096)
+                .map(|c| {
+                    c.iter()
+                        .filter(|r| {
+                            tracer.occluded(
+                                glam::Vec3::new(r[0], r[1], r[2]),
+                                glam::Vec3::new(r[3], r[4], r[5]),
+                                r[6],
+                            )
+                        })
+                        .count()
+                })
+                .sum();
+            (t.elapsed().as_secs_f64(), hits)
+        };
+        let v3 = |r: &[f32]| glam::Vec3::new(r[0], r[1], r[2]);
+        let mask: Vec<u8> = rays
+            .iter()
+            .map(|r| {
+                !tracer.receiver_visible(v3(&r[0..3]), v3(&r[7..10]), v3(&r[3..6]), r[6]) as u8
+            })
+            .collect();
+        println!(
+            "occluded with the horizon rule (as baked): {} of {}",
+            mask.iter().map(|&m| m as usize).sum::<usize>(),
+            rays.len()
+        );
+        std::fs::write(dir.join("occluded_obvhs.u8"), &mask).unwrap();
+        let _ = trace(&rays); // warm caches
+        let (secs, hits) = trace(&rays);
+        println!(
+            "\nobvhs on the dumped rays: {} rays, {hits} occluded, {:.3} s, {:.2} Mrays/s ({} threads)\n",
+            rays.len(),
+            secs,
+            rays.len() as f64 / secs / 1e6,
+            rayon::current_num_threads()
+        );
     }
 
     let settings = |rays| McSettings {

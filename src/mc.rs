@@ -73,11 +73,8 @@ pub fn integrate_receiver(
 ) -> (f32, [f32; SH_COUNT]) {
     let n = receivers.normal[r];
     let frame = Frame::from_normal(n);
-    let origin = offset_origin(
-        receivers.position[r],
-        receivers.geo_normal[r],
-        receivers.footprint[r],
-    );
+    let geo = receivers.geo_normal[r];
+    let origin = offset_origin(receivers.position[r], geo, receivers.footprint[r]);
     let seed = receiver_seed(s.seed, receivers.texel[r] as u64, 0);
     let mut visible = 0u32;
     let mut acc = [0.0f32; SH_COUNT];
@@ -85,7 +82,7 @@ pub fn integrate_receiver(
         let dir = frame
             .to_world(cosine_hemisphere(sobol_2d(i, seed)))
             .normalize();
-        if !tracer.occluded(origin, dir, s.max_distance) {
+        if tracer.receiver_visible(origin, geo, dir, s.max_distance) {
             visible += 1;
             let y = sh::basis(dir);
             for k in 0..SH_COUNT {

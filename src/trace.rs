@@ -92,6 +92,19 @@ impl Tracer {
         !bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
     }
 
+    /// Whether a receiver sees past `t_max` along unit `dir`, from `origin`
+    /// (already lifted by [`offset_origin`]) on a surface with unit
+    /// geometric normal `geo_normal`. A direction at or below the geometric
+    /// tangent plane enters the surface itself, so it is occluded without
+    /// tracing. (Shading normals make ~8% of Sponza's cosine-weighted rays
+    /// do that. Tracing them is wasted work and unreliable: obvhs's CWBVH
+    /// traversal loses some hits within ~1e-5 of the origin, which Embree
+    /// reports.)
+    #[inline]
+    pub fn receiver_visible(&self, origin: Vec3, geo_normal: Vec3, dir: Vec3, t_max: f32) -> bool {
+        dir.dot(geo_normal) > 0.0 && !self.occluded(origin, dir, t_max)
+    }
+
     /// Distance to the closest hit in (0, t_max], if any.
     #[inline]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<f32> {
@@ -139,6 +152,15 @@ mod tests {
             let dir = Vec3::new(1.0, 0.3, 1e-4).normalize();
             assert!(!t.occluded(o, dir, 2.0), "self-hit at {p}");
         }
+    }
+
+    #[test]
+    fn directions_below_the_geometric_plane_are_occluded() {
+        let t = Tracer::new(&[]);
+        let n = Vec3::Z;
+        assert!(t.receiver_visible(Vec3::ZERO, n, Vec3::new(0.0, 0.6, 0.8), 1.0));
+        assert!(!t.receiver_visible(Vec3::ZERO, n, Vec3::new(0.0, 0.8, -0.6), 1.0));
+        assert!(!t.receiver_visible(Vec3::ZERO, n, Vec3::Y, 1.0));
     }
 
     #[test]
