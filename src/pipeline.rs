@@ -355,7 +355,22 @@ pub fn run(input: &Path, output: &Path, settings: &Settings) -> Result<Report> {
     }
     let baked = bake_file(input, settings)?;
     let t = Instant::now();
-    write::write_atomic(output, &baked.glb)?;
+    let out_dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let in_dir = match input.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if same_file(in_dir, out_dir) {
+        write::write_atomic(output, &baked.glb)?;
+    } else {
+        // Relative URIs of external buffers and images must resolve from the output.
+        let (mut json, bin) = write::split_glb(&baked.glb);
+        write::relocate_uris(&mut json, in_dir, out_dir)?;
+        write::write_atomic(output, &write::glb_bytes(&json, &bin))?;
+    }
     let mut report = baked.report;
     let secs = t.elapsed().as_secs_f64();
     report.stages.push(StageTime {

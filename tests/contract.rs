@@ -205,3 +205,63 @@ fn cli_reports_one_line_errors_and_nonzero_exit() {
     );
     assert!(!out.exists());
 }
+
+/// Writes `scene.gltf` + `scene data.bin` + `tex ture.png` into `dir`.
+fn write_gltf(dir: &Path, with_image: bool) {
+    let (json, bin) = split(&wall_scene());
+    let mut json = json;
+    json["buffers"][0]["uri"] = serde_json::json!("scene%20data.bin");
+    std::fs::write(dir.join("scene data.bin"), &bin).unwrap();
+    json["images"] = serde_json::json!([{"uri": "tex%20ture.png"}]);
+    json["textures"] = serde_json::json!([{"source": 0}]);
+    json["materials"] =
+        serde_json::json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);
+    json["meshes"][0]["primitives"][0]["material"] = serde_json::json!(0);
+    if with_image {
+        let png = image::RgbaImage::from_pixel(2, 2, image::Rgba([200, 100, 50, 255]));
+        png.save(dir.join("tex ture.png")).unwrap();
+    }
+    std::fs::write(
+        dir.join("scene.gltf"),
+        serde_json::to_vec_pretty(&json).unwrap(),
+    )
+    .unwrap();
+}
+
+#[test]
+fn gltf_with_external_files_bakes_into_another_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let (src, dst) = (dir.path().join("in"), dir.path().join("out/deeper"));
+    std::fs::create_dir_all(&src).unwrap();
+    std::fs::create_dir_all(&dst).unwrap();
+    write_gltf(&src, true);
+    let out = dst.join("baked.glb");
+    aobake::run(&src.join("scene.gltf"), &out, &settings(64, 8, Some(1.0))).unwrap();
+    let (json, bin) = split(&std::fs::read(&out).unwrap());
+    // The GLB's own buffer comes first; the external one moved to index 1
+    // and its URI now resolves from the output's directory.
+    assert!(json["buffers"][0].get("uri").is_none());
+    assert_eq!(json["buffers"][1]["uri"], "../../in/scene%20data.bin");
+    assert_eq!(json["images"][0]["uri"], "../../in/tex%20ture.png");
+    assert_eq!(
+        json["buffers"][0]["byteLength"].as_u64().unwrap() as usize,
+        bin.len()
+    );
+    let scene = aobake::load::load(&out).expect("output loads, external files resolve");
+    assert_eq!(scene.baked_count(), 2);
+}
+
+#[test]
+fn missing_external_image_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    write_gltf(dir.path(), false);
+    let out = dir.path().join("out.glb");
+    let err = aobake::run(&dir.path().join("scene.gltf"), &out, &settings(32, 4, None))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("images[0]") && err.contains("tex ture.png"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

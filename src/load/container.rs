@@ -63,6 +63,7 @@ pub fn parse(bytes: &[u8], base_dir: &Path) -> Result<Document> {
     check_version(&json)?;
     let glb_bin = bin.is_some();
     let buffers = resolve_buffers(&json, bin, base_dir)?;
+    check_images(&json, base_dir)?;
     Ok(Document {
         json,
         buffers,
@@ -147,7 +148,7 @@ fn check_version(json: &Value) -> Result<()> {
 }
 
 /// Decodes a percent-encoded relative URI into a path fragment.
-fn percent_decode(uri: &str) -> String {
+pub fn percent_decode(uri: &str) -> String {
     let bytes = uri.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -184,6 +185,33 @@ pub fn load_uri(uri: &str, base_dir: &Path, what: &str) -> Result<Vec<u8>> {
     let path = base_dir.join(percent_decode(uri));
     std::fs::read(&path)
         .map_err(|e| Error::Invalid(format!("{what}: cannot read \"{}\": {e}", path.display())))
+}
+
+/// External images are not decoded, but the output refers to them: each
+/// must exist as a readable file.
+fn check_images(json: &Value, base_dir: &Path) -> Result<()> {
+    for (i, img) in json
+        .get("images")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+        .enumerate()
+    {
+        let Some(uri) = img.get("uri").and_then(Value::as_str) else {
+            continue;
+        };
+        if uri.starts_with("data:") || uri.contains("://") {
+            continue;
+        }
+        let path = base_dir.join(percent_decode(uri));
+        std::fs::File::open(&path).map_err(|e| {
+            Error::Invalid(format!(
+                "images[{i}]: cannot read \"{}\": {e}",
+                path.display()
+            ))
+        })?;
+    }
+    Ok(())
 }
 
 fn resolve_buffers(json: &Value, bin: Option<&[u8]>, base_dir: &Path) -> Result<Vec<Vec<u8>>> {
