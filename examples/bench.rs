@@ -1,19 +1,23 @@
-//! Benchmark: stage times, ray throughput, and Monte Carlo error against a
-//! high-ray reference on one atlas.
+//! Benchmark: end-to-end bakes of one scene by several methods on the same
+//! atlas (the unwrap is deterministic), each compared texel by texel with a
+//! high-ray Monte Carlo reference.
 //!
-//!     cargo run --release --example bench -- [SCENE.glb] [--resolution 1024] [--reference 2048] [--rays 16,64,256]
+//!     cargo run --release --example bench -- [SCENE.glb] [--resolution 1024]
+//!         [--reference 2048] [--runs mc:16,mc:64,mc:256,filtered] [--dump-rays DIR]
 //!
-//! Prints a markdown table. All figures come from one run on one machine.
+//! `filtered` takes the default filter settings; `filtered:K:R` sets sparse
+//! rays K and gather radius R (texels). Prints markdown tables; all figures
+//! come from one run on one machine. `--dump-rays DIR` also writes 2M of the
+//! bake's Monte Carlo rays for `tools/embree_compare.py` and times obvhs on them.
 
-use aobake::load;
-use aobake::mc::{self, McSettings};
-use aobake::pipeline::DEFAULT_MAX_DISTANCE_FRACTION;
-use aobake::rasterize::{self, Receivers};
+use aobake::pipeline::{self, Baked, FilterOptions, Method, Settings};
+use aobake::rasterize::Receivers;
 use aobake::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};
 use aobake::trace::{Tracer, offset_origin};
-use aobake::unwrap::{self, AtlasSize, Packing, UnwrapOptions};
+use aobake::unwrap::AtlasSize;
 use rayon::prelude::*;
 use std::io::Write;
+use std::path::Path;
 use std::time::Instant;
 
 fn rmse(a: &[f32], b: &[f32]) -> f64 {
@@ -26,7 +30,7 @@ fn rmse(a: &[f32], b: &[f32]) -> f64 {
 }
 
 /// The first `per` rays of every `stride`-th receiver, as the MC baker casts
-/// them: [ox, oy, oz, dx, dy, dz, t_max] in bake space.
+/// them: [ox, oy, oz, dx, dy, dz, t_max, geometric normal] in bake space.
 fn sample_rays(r: &Receivers, per: u32, stride: usize, t_max: f32) -> Vec<[f32; 10]> {
     (0..r.len())
         .step_by(stride)
@@ -45,11 +49,58 @@ fn sample_rays(r: &Receivers, per: u32, stride: usize, t_max: f32) -> Vec<[f32; 
         .collect()
 }
 
-fn write_f32(path: &std::path::Path, data: &[f32]) {
+fn write_f32(path: &Path, data: &[f32]) {
     let mut f = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
     for v in data {
         f.write_all(&v.to_le_bytes()).unwrap();
     }
+}
+
+fn dump_rays(dir: &Path, reference: &Baked) {
+    std::fs::create_dir_all(dir).unwrap();
+    let receivers = &reference.receivers;
+    let tracer = Tracer::new(&reference.geometry.occluders);
+    let t_max = (reference.report.max_distance / reference.geometry.space.diagonal) as f32;
+    let stride = (receivers.len() * 16 / 2_000_000).max(1);
+    let rays = sample_rays(receivers, 16, stride, t_max);
+    let tris: Vec<f32> = reference
+        .geometry
+        .occluders
+        .iter()
+        .flat_map(|t| t.iter().flat_map(|v| v.to_array()))
+        .collect();
+    write_f32(&dir.join("tris.f32"), &tris);
+    write_f32(
+        &dir.join("rays.f32"),
+        &rays.iter().flatten().copied().collect::<Vec<_>>(),
+    );
+    let v3 = |r: &[f32]| glam::Vec3::new(r[0], r[1], r[2]);
+    let mask: Vec<u8> = rays
+        .iter()
+        .map(|r| !tracer.receiver_visible(v3(&r[0..3]), v3(&r[7..10]), v3(&r[3..6]), r[6]) as u8)
+        .collect();
+    std::fs::write(dir.join("occluded_obvhs.u8"), &mask).unwrap();
+    let trace = || {
+        let t = Instant::now();
+        let hits: usize = rays
+            .par_chunks(4096)
+            .map(|c| {
+                c.iter()
+                    .filter(|r| tracer.occluded(v3(&r[0..3]), v3(&r[3..6]), r[6]))
+                    .count()
+            })
+            .sum();
+        (t.elapsed().as_secs_f64(), hits)
+    };
+    let _ = trace();
+    let (secs, hits) = trace();
+    println!(
+        "\nobvhs on {} dumped rays: {hits} occluded (plain), {} with the horizon rule, {secs:.3} s, {:.2} Mrays/s ({} threads)",
+        rays.len(),
+        mask.iter().map(|&m| m as usize).sum::<usize>(),
+        rays.len() as f64 / secs / 1e6,
+        rayon::current_num_threads()
+    );
 }
 
 fn main() {
@@ -61,163 +112,123 @@ fn main() {
             .cloned()
             .unwrap_or(default.to_string())
     };
-    let scene_path = args
+    let scene = args
         .first()
         .filter(|a| !a.starts_with("--"))
         .cloned()
         .unwrap_or("../shared/assets/sponza_dabrovic.glb".into());
     let resolution: u32 = flag("--resolution", "1024").parse().unwrap();
-    let reference: u32 = flag("--reference", "2048").parse().unwrap();
-    let ladder: Vec<u32> = flag("--rays", "16,64,256")
-        .split(',')
-        .map(|s| s.parse().unwrap())
-        .collect();
-
-    let t = Instant::now();
-    let scene = load::load(std::path::Path::new(&scene_path)).expect("load");
-    let t_load = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let geometry = scene.bake_geometry().expect("geometry");
-    let t_prep = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let opts = UnwrapOptions {
+    let reference_rays: u32 = flag("--reference", "2048").parse().unwrap();
+    let runs = flag("--runs", "mc:16,mc:64,mc:256,filtered");
+    let base = Settings {
         size: AtlasSize::Resolution(resolution),
-        padding: 2,
-        packing: Packing::Fast,
+        progress: false,
+        ..Default::default()
     };
-    let atlas =
-        unwrap::unwrap(&geometry.receivers, &opts, geometry.space.diagonal).expect("unwrap");
-    let t_unwrap = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let receivers = rasterize::rasterize(&geometry.receivers, &atlas);
-    let t_raster = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let tracer = Tracer::new(&geometry.occluders);
-    let t_bvh = t.elapsed().as_secs_f64();
+    let mc = |rays, seed| Settings {
+        method: Method::Mc,
+        rays,
+        seed,
+        ..base.clone()
+    };
+    let path = Path::new(&scene);
 
-    println!("scene: {scene_path}");
+    let reference = pipeline::bake_file(path, &mc(reference_rays, 1)).expect("reference bake");
+    let r = &reference.report;
+    println!("scene: {scene}");
     println!(
-        "atlas {}x{}, {} charts, {} texels (receivers), {} occluder triangles, {} threads, max distance {} x diagonal\n",
-        atlas.width,
-        atlas.height,
-        atlas.charts,
-        receivers.len(),
-        tracer.triangle_count(),
-        rayon::current_num_threads(),
-        DEFAULT_MAX_DISTANCE_FRACTION
+        "atlas {}x{}, {} charts, {} texels, {} occluder triangles, {} threads, max distance {:.4} (world)\n",
+        r.atlas_width,
+        r.atlas_height,
+        r.charts,
+        r.texels,
+        r.occluder_triangles,
+        r.threads,
+        r.max_distance
     );
-    println!("| stage | seconds |\n|---|---|");
-    for (s, v) in [
-        ("load", t_load),
-        ("bake-space geometry", t_prep),
-        ("unwrap", t_unwrap),
-        ("rasterize", t_raster),
-        ("BVH build", t_bvh),
-    ] {
-        println!("| {s} | {v:.3} |");
+    println!("reference ({reference_rays}-ray MC) stage times:\n\n| stage | seconds |\n|---|---|");
+    for st in &r.stages {
+        println!("| {} | {:.3} |", st.stage, st.seconds);
     }
-
+    println!("| total | {:.3} |\n", r.total_seconds);
     if let Some(dir) = args
         .iter()
         .position(|a| a == "--dump-rays")
         .and_then(|i| args.get(i + 1))
     {
-        // 2M of the bake's own rays, for tools/embree_compare.py.
-        let dir = std::path::Path::new(dir);
-        std::fs::create_dir_all(dir).unwrap();
-        let stride = (receivers.len() * 16 / 2_000_000).max(1);
-        let rays = sample_rays(&receivers, 16, stride, DEFAULT_MAX_DISTANCE_FRACTION as f32);
-        let tris: Vec<f32> = geometry
-            .occluders
-            .iter()
-            .flat_map(|t| t.iter().flat_map(|v| v.to_array()))
-            .collect();
-        write_f32(&dir.join("tris.f32"), &tris);
-        write_f32(
-            &dir.join("rays.f32"),
-            &rays.iter().flatten().copied().collect::<Vec<_>>(),
-        );
-        let trace = |rays: &[[f32; 10]]| {
-            let t = Instant::now();
-            let hits: usize = rays
-                .par_chunks(4096)
-                .map(|c| {
-                    c.iter()
-                        .filter(|r| {
-                            tracer.occluded(
-                                glam::Vec3::new(r[0], r[1], r[2]),
-                                glam::Vec3::new(r[3], r[4], r[5]),
-                                r[6],
-                            )
-                        })
-                        .count()
-                })
-                .sum();
-            (t.elapsed().as_secs_f64(), hits)
-        };
-        let v3 = |r: &[f32]| glam::Vec3::new(r[0], r[1], r[2]);
-        let mask: Vec<u8> = rays
-            .iter()
-            .map(|r| {
-                !tracer.receiver_visible(v3(&r[0..3]), v3(&r[7..10]), v3(&r[3..6]), r[6]) as u8
-            })
-            .collect();
-        println!(
-            "occluded with the horizon rule (as baked): {} of {}",
-            mask.iter().map(|&m| m as usize).sum::<usize>(),
-            rays.len()
-        );
-        std::fs::write(dir.join("occluded_obvhs.u8"), &mask).unwrap();
-        let _ = trace(&rays); // warm caches
-        let (secs, hits) = trace(&rays);
-        println!(
-            "\nobvhs on the dumped rays: {} rays, {hits} occluded, {:.3} s, {:.2} Mrays/s ({} threads)\n",
-            rays.len(),
-            secs,
-            rays.len() as f64 / secs / 1e6,
-            rayon::current_num_threads()
-        );
+        dump_rays(Path::new(dir), &reference);
     }
 
-    let settings = |rays| McSettings {
-        rays,
-        max_distance: DEFAULT_MAX_DISTANCE_FRACTION as f32,
-        seed: 1,
-    };
-    let t = Instant::now();
-    let reference_bake = mc::bake(&receivers, &tracer, &settings(reference), &|_| {});
-    let t_ref = t.elapsed().as_secs_f64();
-    println!("| trace, reference {reference} rays | {t_ref:.3} |\n");
     println!(
-        "| rays/texel | trace s | Mrays/s | AO RMSE | AO max err | SH RMSE (all 9) |\n|---|---|---|---|---|---|"
+        "\n| run | total s | trace/filter s | rays/texel | Mrays/s | AO RMSE | AO bias | AO p99 err | SH RMSE | brute-forced cells |"
     );
-    for &rays in &ladder {
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    let flat = |v: &[[f32; 9]]| v.iter().flatten().copied().collect::<Vec<f32>>();
+    let ref_sh = flat(&reference.bake.sh);
+    for run in runs.split(',') {
+        let parts: Vec<&str> = run.split(':').collect();
+        let settings = match parts[0] {
+            "mc" => mc(parts[1].parse().unwrap(), 7),
+            "filtered" => {
+                let mut f = FilterOptions::default();
+                if let Some(k) = parts.get(1) {
+                    f.sparse_rays = k.parse().unwrap();
+                }
+                if let Some(r) = parts.get(2) {
+                    f.gather_radius = r.parse().unwrap();
+                }
+                Settings {
+                    method: Method::Filtered,
+                    seed: 7,
+                    filter: f,
+                    ..base.clone()
+                }
+            }
+            other => panic!("unknown run {other}"),
+        };
         let t = Instant::now();
-        let b = mc::bake(
-            &receivers,
-            &tracer,
-            &McSettings {
-                seed: 7,
-                ..settings(rays)
-            },
-            &|_| {},
+        let b = pipeline::bake_file(path, &settings).expect("bake");
+        let total = t.elapsed().as_secs_f64();
+        assert_eq!(
+            b.receivers.texel, reference.receivers.texel,
+            "same atlas and receivers"
         );
-        let secs = t.elapsed().as_secs_f64();
-        let ao_rmse = rmse(&b.ao, &reference_bake.ao);
-        let ao_max =
-            b.ao.iter()
-                .zip(&reference_bake.ao)
-                .map(|(x, y)| (x - y).abs())
-                .fold(0.0f32, f32::max);
-        let flat = |v: &[[f32; 9]]| v.iter().flatten().copied().collect::<Vec<f32>>();
-        let sh_rmse = rmse(&flat(&b.sh), &flat(&reference_bake.sh));
+        let rep = &b.report;
+        let work: f64 = rep
+            .stages
+            .iter()
+            .filter(|s| ["trace", "sparse pass", "filter pass"].contains(&s.stage))
+            .map(|s| s.seconds)
+            .sum();
+        let mut err: Vec<f32> = b
+            .bake
+            .ao
+            .iter()
+            .zip(&reference.bake.ao)
+            .map(|(x, y)| (x - y).abs())
+            .collect();
+        let bias = b
+            .bake
+            .ao
+            .iter()
+            .zip(&reference.bake.ao)
+            .map(|(x, y)| (x - y) as f64)
+            .sum::<f64>()
+            / err.len() as f64;
+        err.sort_by(f32::total_cmp);
+        let p99 = err[(err.len() as f64 * 0.99) as usize];
         println!(
-            "| {rays} | {secs:.2} | {:.2} | {ao_rmse:.4} | {ao_max:.3} | {sh_rmse:.4} |",
-            b.rays as f64 / secs / 1e6
+            "| {run} | {total:.2} | {work:.2} | {:.1} | {:.2} | {:.4} | {:+.4} | {:.3} | {:.4} | {} |",
+            rep.rays_per_texel_total,
+            rep.rays_cast as f64 / work / 1e6,
+            rmse(&b.bake.ao, &reference.bake.ao),
+            bias,
+            p99,
+            rmse(&flat(&b.bake.sh), &ref_sh),
+            rep.filter.as_ref().map_or("-".into(), |f| format!(
+                "{:.1}%",
+                100.0 * f.cells_brute_forced
+            )),
         );
     }
-    println!(
-        "| {reference} (reference) | {t_ref:.2} | {:.2} | 0 | 0 | 0 |",
-        reference_bake.rays as f64 / t_ref / 1e6
-    );
 }

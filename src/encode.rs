@@ -163,6 +163,49 @@ pub fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
         .map_err(|e| crate::error::Error::Encode(format!("{}: {e}", path.display())))
 }
 
+/// Writes the filter's diagnostic maps into `dir` as greyscale PNGs (gutters
+/// black): `brute_force_fraction.png` (share of each texel's cells
+/// brute-forced, white = all; the paper's Figure 7a inset), `z_min.png`
+/// (nearest occluder, black = contact, white = none within the max
+/// distance), `neighbours.png` (neighbours that lent rays, white = the most
+/// of any texel) and `sparse_ao.png` (AO of the texel's own sparse rays).
+pub fn write_debug_maps(
+    dir: &Path,
+    receivers: &Receivers,
+    stats: &crate::filter::FilterStats,
+    max_distance: f32,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let (w, h) = (receivers.width, receivers.height);
+    let max_neighbours = stats.neighbours.iter().copied().max().unwrap_or(1).max(1) as f32;
+    type Map<'a> = (&'a str, Box<dyn Fn(usize) -> f32 + 'a>);
+    let maps: [Map; 4] = [
+        (
+            "brute_force_fraction.png",
+            Box::new(|r| stats.brute_fraction[r]),
+        ),
+        (
+            "z_min.png",
+            Box::new(|r| (stats.z_min[r] / max_distance).min(1.0)),
+        ),
+        (
+            "neighbours.png",
+            Box::new(|r| stats.neighbours[r] as f32 / max_neighbours),
+        ),
+        ("sparse_ao.png", Box::new(|r| stats.sparse_ao[r])),
+    ];
+    for (name, value) in maps {
+        let mut img = vec![0u8; (w * h) as usize];
+        for (r, &t) in receivers.texel.iter().enumerate() {
+            img[t as usize] = to_u8(value(r));
+        }
+        let bytes = png(w, h, &img, image::ExtendedColorType::L8)?;
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).map_err(|e| Error::io(&path, e))?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,6 +9,7 @@
 pub mod dilate;
 pub mod encode;
 pub mod error;
+pub mod filter;
 pub mod load;
 pub mod mc;
 pub mod pipeline;

@@ -1,6 +1,6 @@
 //! The `aobake` command line.
 
-use aobake::pipeline::{self, Method, Settings, UvSource};
+use aobake::pipeline::{self, FilterOptions, Method, Settings, UvSource};
 use aobake::unwrap::{AtlasSize, Packing};
 use aobake::write::OcclusionMode;
 use clap::{Parser, ValueEnum};
@@ -9,6 +9,8 @@ use std::process::ExitCode;
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum MethodArg {
+    /// Sparse rays shared between texels (Egan et al. 2011), brute force where needed.
+    Filtered,
     /// Brute-force Monte Carlo.
     Mc,
 }
@@ -51,9 +53,24 @@ struct Cli {
     /// Texels per world unit instead of a fixed page size.
     #[arg(long)]
     texel_density: Option<f64>,
-    /// Rays per texel.
+    /// Rays per texel of the Monte Carlo method.
     #[arg(long, default_value_t = 256)]
     rays: u32,
+    /// Filtered: sparse rays per texel shared with the neighbours.
+    #[arg(long, default_value_t = FilterOptions::default().sparse_rays)]
+    sparse_rays: u32,
+    /// Filtered: neighbour gather radius in texels.
+    #[arg(long, default_value_t = FilterOptions::default().gather_radius)]
+    gather_radius: f32,
+    /// Filtered: angular bandlimit Omega_v^max (larger: sharper, more brute force).
+    #[arg(long, default_value_t = FilterOptions::default().omega_v_max)]
+    omega_v: f32,
+    /// Filtered: brute-force rays per hemisphere cell the filter cannot serve.
+    #[arg(long, default_value_t = FilterOptions::default().cell_rays)]
+    cell_rays: u32,
+    /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.
+    #[arg(long)]
+    debug_dir: Option<PathBuf>,
     /// Max occluder distance in world units [default: 0.1 x scene diagonal].
     #[arg(long)]
     max_distance: Option<f64>,
@@ -125,8 +142,16 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         },
         method: match cli.method {
             MethodArg::Mc => Method::Mc,
+            MethodArg::Filtered => Method::Filtered,
         },
         rays: cli.rays,
+        filter: FilterOptions {
+            sparse_rays: cli.sparse_rays,
+            gather_radius: cli.gather_radius,
+            omega_v_max: cli.omega_v,
+            cell_rays: cli.cell_rays,
+        },
+        debug_dir: cli.debug_dir.clone(),
         max_distance: cli.max_distance,
         seed: cli.seed,
         occlusion: match cli.occlusion {

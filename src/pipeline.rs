@@ -7,6 +7,7 @@
 use crate::dilate;
 use crate::encode::{self, Encoded, Lightmap};
 use crate::error::{Error, Result};
+use crate::filter;
 use crate::load::{self, BakeGeometry, Scene};
 use crate::mc::{self, Bake, McSettings};
 use crate::rasterize::{self, Receivers};
@@ -26,6 +27,8 @@ pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
+    /// Sparse rays shared between texels by the filter of Egan et al. 2011.
+    Filtered,
     /// Brute-force Monte Carlo.
     Mc,
 }
@@ -33,7 +36,30 @@ pub enum Method {
 impl Method {
     pub fn name(self) -> &'static str {
         match self {
+            Method::Filtered => "filtered",
             Method::Mc => "mc",
+        }
+    }
+}
+
+/// Options of the filtered method (see [`crate::filter`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FilterOptions {
+    pub sparse_rays: u32,
+    /// Gather radius in texels.
+    pub gather_radius: f32,
+    pub omega_v_max: f32,
+    pub cell_rays: u32,
+}
+
+impl Default for FilterOptions {
+    fn default() -> Self {
+        let d = filter::FilterSettings::default();
+        FilterOptions {
+            sparse_rays: d.sparse_rays,
+            gather_radius: d.gather_radius,
+            omega_v_max: d.omega_v_max,
+            cell_rays: d.cell_rays,
         }
     }
 }
@@ -56,7 +82,11 @@ pub struct Settings {
     pub packing: Packing,
     pub uv: UvSource,
     pub method: Method,
+    /// Rays per texel of the Monte Carlo method.
     pub rays: u32,
+    pub filter: FilterOptions,
+    /// Write diagnostic PNG maps here.
+    pub debug_dir: Option<PathBuf>,
     /// World units; `None`: [`DEFAULT_MAX_DISTANCE_FRACTION`] of the diagonal.
     pub max_distance: Option<f64>,
     pub seed: u64,
@@ -75,6 +105,8 @@ impl Default for Settings {
             uv: UvSource::Generate,
             method: Method::Mc,
             rays: 256,
+            filter: FilterOptions::default(),
+            debug_dir: None,
             max_distance: None,
             seed: 0,
             occlusion: OcclusionMode::Keep,
@@ -103,8 +135,14 @@ pub struct Report {
     pub texels: usize,
     pub baked_primitives: usize,
     pub occluder_triangles: usize,
+    /// Monte Carlo rays per texel (the `--rays` setting; 0 for filtered).
     pub rays_per_texel: u32,
     pub rays_cast: u64,
+    /// Rays cast per texel, all passes together.
+    pub rays_per_texel_total: f64,
+    /// Filtered method only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub filter: Option<FilterReport>,
     pub rays_per_second: f64,
     pub max_distance: f64,
     pub seed: u64,
@@ -114,12 +152,35 @@ pub struct Report {
     pub warnings: Vec<String>,
 }
 
+/// The filtered method's figures in the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct FilterReport {
+    pub sparse_rays_per_texel: u32,
+    pub gather_radius_texels: f32,
+    pub omega_v_max: f32,
+    pub cell_rays: u32,
+    pub sparse_rays: u64,
+    pub second_pass_rays: u64,
+    /// Fractions of all hemisphere cells (64 per texel).
+    pub cells_filtered: f64,
+    pub cells_brute_forced: f64,
+    pub cells_open: f64,
+    /// Fraction of texels whose whole neighbourhood saw no occluder.
+    pub texels_open: f64,
+    pub sparse_pass_seconds: f64,
+    /// Filtering with the second pass's brute-force rays (interleaved per texel).
+    pub filter_pass_seconds: f64,
+    pub mean_neighbours: f64,
+}
+
 /// Every product of a bake.
 pub struct Baked {
     pub geometry: BakeGeometry,
     pub atlas: Atlas,
     pub receivers: Receivers,
     pub bake: Bake,
+    /// Filtered method only.
+    pub filter_stats: Option<filter::FilterStats>,
     pub lightmap: Lightmap,
     pub encoded: Encoded,
     pub glb: Vec<u8>,
@@ -268,11 +329,46 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         seed: s.seed,
     };
     let pb = bar(s.progress, receivers.len() as u64, "baking");
-    let bake = match s.method {
-        Method::Mc => mc::bake(&receivers, &tracer, &mc_settings, &|n| pb.inc(n)),
+    let (bake, filter_stats) = match s.method {
+        Method::Mc => {
+            let b = mc::bake(&receivers, &tracer, &mc_settings, &|n| pb.inc(n));
+            t.lap("trace");
+            (b, None)
+        }
+        Method::Filtered => {
+            let fs = filter::FilterSettings {
+                sparse_rays: s.filter.sparse_rays.max(1),
+                gather_radius: s.filter.gather_radius,
+                omega_v_max: s.filter.omega_v_max,
+                cell_rays: s.filter.cell_rays.max(1),
+                max_distance: mc_settings.max_distance,
+                seed: s.seed,
+                ..Default::default()
+            };
+            if !(fs.gather_radius >= 0.0 && fs.gather_radius.is_finite()) {
+                return Err(Error::Option(format!(
+                    "--gather-radius {} must be finite and >= 0",
+                    fs.gather_radius
+                )));
+            }
+            if !(fs.omega_v_max > 0.0) {
+                return Err(Error::Option(format!(
+                    "--omega-v {} must be > 0",
+                    fs.omega_v_max
+                )));
+            }
+            let samples = filter::sparse_pass(&receivers, &tracer, &fs);
+            t.lap("sparse pass");
+            let (b, stats) =
+                filter::filter_pass(&receivers, &samples, &tracer, &fs, &|n| pb.inc(n))?;
+            t.lap("filter pass");
+            (b, Some(stats))
+        }
     };
     pb.finish_and_clear();
-    t.lap("trace");
+    if let (Some(dir), Some(stats)) = (&s.debug_dir, &filter_stats) {
+        crate::encode::write_debug_maps(dir, &receivers, stats, mc_settings.max_distance)?;
+    }
     let fill = dilate::nearest_receiver(receivers.width, receivers.height, &receivers.texel);
     let lightmap = encode::lightmap(&receivers, &bake, &fill)?;
     t.lap("dilate");
@@ -285,7 +381,10 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
     let options = OutputOptions {
         record: BakeRecord {
             method: s.method.name().to_string(),
-            rays: s.rays,
+            rays: match s.method {
+                Method::Mc => s.rays,
+                Method::Filtered => s.filter.sparse_rays,
+            },
             seed: s.seed,
             max_distance: max_distance_world,
             width: atlas.width,
@@ -300,7 +399,24 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
     let mut warnings = scene.warnings.clone();
     let glb = write::build_glb(scene, &geometry, &atlas, &encoded, &options, &mut warnings)?;
     t.lap("write");
-    let trace_s = t.seconds("trace");
+    let trace_s = t.seconds("trace") + t.seconds("sparse pass") + t.seconds("filter pass");
+    let cells = (receivers.len() * crate::sample::CELL_COUNT) as f64;
+    let filter_report = filter_stats.as_ref().map(|f| FilterReport {
+        sparse_rays_per_texel: s.filter.sparse_rays,
+        gather_radius_texels: s.filter.gather_radius,
+        omega_v_max: s.filter.omega_v_max,
+        cell_rays: s.filter.cell_rays,
+        sparse_rays: f.sparse_rays,
+        second_pass_rays: f.brute_rays,
+        cells_filtered: f.cells_filtered as f64 / cells,
+        cells_brute_forced: f.cells_brute as f64 / cells,
+        cells_open: f.cells_open as f64 / cells,
+        texels_open: f.receivers_open as f64 / receivers.len() as f64,
+        sparse_pass_seconds: t.seconds("sparse pass"),
+        filter_pass_seconds: t.seconds("filter pass"),
+        mean_neighbours: f.neighbours.iter().map(|&n| n as f64).sum::<f64>()
+            / receivers.len() as f64,
+    });
     let report = Report {
         input: String::new(),
         method: s.method,
@@ -311,8 +427,10 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         texels: receivers.len(),
         baked_primitives: geometry.receivers.len(),
         occluder_triangles: tracer.triangle_count(),
-        rays_per_texel: s.rays,
+        rays_per_texel: if s.method == Method::Mc { s.rays } else { 0 },
         rays_cast: bake.rays,
+        rays_per_texel_total: bake.rays as f64 / receivers.len() as f64,
+        filter: filter_report,
         rays_per_second: if trace_s > 0.0 {
             bake.rays as f64 / trace_s
         } else {
@@ -330,6 +448,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         atlas,
         receivers,
         bake,
+        filter_stats,
         lightmap,
         encoded,
         glb,

@@ -125,6 +125,7 @@ pub fn scene(bytes: &[u8]) -> aobake::load::Scene {
 pub fn settings(resolution: u32, rays: u32, max_distance: Option<f64>) -> aobake::Settings {
     aobake::Settings {
         size: aobake::unwrap::AtlasSize::Resolution(resolution),
+        method: aobake::Method::Mc,
         rays,
         max_distance,
         progress: false,
