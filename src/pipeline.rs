@@ -351,7 +351,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
                     fs.gather_radius
                 )));
             }
-            if !(fs.omega_v_max > 0.0) {
+            if fs.omega_v_max.is_nan() || fs.omega_v_max <= 0.0 {
                 return Err(Error::Option(format!(
                     "--omega-v {} must be > 0",
                     fs.omega_v_max
