@@ -5,8 +5,8 @@
 //!     cargo run --release --example bench -- [SCENE.glb] [--resolution 1024]
 //!         [--reference 2048] [--runs mc:16,mc:64,mc:256,filtered] [--dump-rays DIR]
 //!
-//! `filtered` takes the default filter settings; `filtered:K:R` sets sparse
-//! rays K and gather radius R (texels). Prints markdown tables; all figures
+//! `filtered` takes the default filter settings; `filtered:K:R:C` sets sparse
+//! rays K, gather radius R (texels) and brute-force rays per cell C. Prints markdown tables; all figures
 //! come from one run on one machine. `--dump-rays DIR` also writes 2M of the
 //! bake's Monte Carlo rays for `tools/embree_compare.py` and times obvhs on them.
 
@@ -176,6 +176,9 @@ fn main() {
                 }
                 if let Some(r) = parts.get(2) {
                     f.gather_radius = r.parse().unwrap();
+                }
+                if let Some(c) = parts.get(3) {
+                    f.cell_rays = c.parse().unwrap();
                 }
                 Settings {
                     method: Method::Filtered,

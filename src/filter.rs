@@ -9,9 +9,10 @@
 //!    entry keeps the direction and hit distance (or a miss).
 //! 2. Per receiver (Algorithm 1): gather world-space neighbours with a k-d
 //!    tree inside `gather_radius` texel footprints, keep those that can lend
-//!    rays (the *leak rule*: normals within ~25 degrees and the neighbour near
-//!    the receiver's tangent plane, so the far side of a thin wall or a
-//!    facing surface never contributes). Hemisphere *cells* are the 8x8
+//!    rays (the *leak rule*: shading and geometric normals both within ~25
+//!    degrees and the neighbour near the receiver's geometric tangent plane,
+//!    so the far side of a thin wall, a facing surface, or the other face of
+//!    a two-faced sheet whose shading normals agree never contributes). Hemisphere *cells* are the 8x8
 //!    equal-projected-area cells of the concentric map. From neighbours'
 //!    occluded hits in the receiver's hemisphere: per-cell `z_min`/`z_max`,
 //!    the spatial radius of Eq. 8, which for shading diameter d and
@@ -357,7 +358,8 @@ fn filter_receiver(
             let j = it.item as usize;
             let rel = receivers.position[j] - p;
             if receivers.normal[j].dot(n) >= NORMAL_AGREEMENT
-                && rel.dot(n).abs() <= TANGENT_SLOPE * rel.length() + footprint
+                && receivers.geo_normal[j].dot(geo) >= NORMAL_AGREEMENT
+                && rel.dot(geo).abs() <= TANGENT_SLOPE * rel.length() + footprint
             {
                 sc.neighbours.push(j as u32);
             }
@@ -378,9 +380,10 @@ fn filter_receiver(
             }
             let d = samples.dir[i];
             if t.is_infinite() {
-                // Evidence that the direction is open: counted in its own cell.
+                // Evidence that the direction is open: counted in its own
+                // cell, if it is above this receiver's surface.
                 let ld = frame.to_local(d);
-                if ld.z > 0.0 {
+                if ld.z > 0.0 && d.dot(geo) > 0.0 {
                     let c = cell_of_fast(ld);
                     sc.count[c] = sc.count[c].saturating_add(1);
                 }
