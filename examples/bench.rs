@@ -5,8 +5,8 @@
 //!     cargo run --release --example bench -- [SCENE.glb] [--resolution 1024]
 //!         [--reference 2048] [--runs mc:16,mc:64,mc:256,filtered] [--dump-rays DIR]
 //!
-//! `filtered` takes the default filter settings; `filtered:K:R:C` sets sparse
-//! rays K, gather radius R (texels) and brute-force rays per cell C. Prints markdown tables; all figures
+//! `filtered` takes the default filter settings; `filtered:K:R:C:O` sets sparse
+//! rays K, gather radius R (texels), brute-force rays per cell C and Omega_v O. Prints markdown tables; all figures
 //! come from one run on one machine. `--dump-rays DIR` also writes 2M of the
 //! bake's Monte Carlo rays for `tools/embree_compare.py` and times obvhs on them.
 
@@ -179,6 +179,9 @@ fn main() {
                 }
                 if let Some(c) = parts.get(3) {
                     f.cell_rays = c.parse().unwrap();
+                }
+                if let Some(o) = parts.get(4) {
+                    f.omega_v_max = o.parse().unwrap();
                 }
                 Settings {
                     method: Method::Filtered,

@@ -103,7 +103,7 @@ pub struct FilterStats {
 pub struct Samples {
     pub per_receiver: usize,
     pub dir: Vec<Vec3>,
-    /// Hit distance; `INFINITY` for a miss within the max distance;
+    /// Hit distance; `INFINITY` for a miss within [`sparse_t_max`];
     /// negative for a direction below the geometric horizon (it enters the
     /// receiver's own surface and says nothing about occluders).
     pub t: Vec<f32>,
@@ -114,8 +114,10 @@ const NORMAL_AGREEMENT: f32 = 0.906;
 /// Largest tangent-plane distance of a neighbour, as a fraction of its
 /// distance (plus one footprint): keeps neighbours on the same sheet.
 const TANGENT_SLOPE: f32 = 0.25;
-/// Fewest samples a cell must receive in the sparse pass to be trusted open.
-const MIN_CELL_SAMPLES: u16 = 2;
+/// Fewest unoccluded samples a cell without hits must receive to be trusted
+/// open: a cell occluded with probability p shows no hit among N samples with
+/// probability (1-p)^N, a bright bias of at most ~1/(e (N+1)) per cell.
+const MIN_CELL_SAMPLES: u16 = 12;
 
 /// Cell centre directions in the local frame.
 static CELL_CENTRES: LazyLock<[Vec3; CELL_COUNT]> =
@@ -183,8 +185,18 @@ pub fn reproject(receiver: Vec3, o: Vec3, d: Vec3, target: Vec3) -> Option<(Vec3
     Some((e, (rel + d * u).length(), dist))
 }
 
+/// How far sparse rays are traced: the max distance plus the widest gather
+/// reach, so an occluder within the max distance of a *receiver* is found
+/// by every neighbour whose rays it lends (the paper traces unbounded rays
+/// and applies the distance test per receiver, Section 5).
+pub fn sparse_t_max(receivers: &Receivers, s: &FilterSettings) -> f32 {
+    let widest = receivers.footprint.iter().copied().fold(0.0f32, f32::max);
+    s.max_distance + (s.gather_radius * widest).min(s.max_distance)
+}
+
 /// Casts the sparse rays.
 pub fn sparse_pass(receivers: &Receivers, tracer: &Tracer, s: &FilterSettings) -> Samples {
+    let t_max = sparse_t_max(receivers, s);
     let k = s.sparse_rays as usize;
     let n = receivers.len();
     let mut dir = vec![Vec3::ZERO; n * k];
@@ -208,7 +220,7 @@ pub fn sparse_pass(receivers: &Receivers, tracer: &Tracer, s: &FilterSettings) -
                         -1.0
                     } else {
                         tracer
-                            .closest_hit(origin, d, s.max_distance)
+                            .closest_hit(origin, d, t_max)
                             .unwrap_or(f32::INFINITY)
                     };
                 }
@@ -312,9 +324,9 @@ pub fn filter_pass(
         stats.z_min.push(res.z_min);
         stats.neighbours.push(res.neighbours);
         let own = &samples.t[r * k..(r + 1) * k];
-        stats
-            .sparse_ao
-            .push(own.iter().filter(|t| t.is_infinite()).count() as f32 / k as f32);
+        // Sparse rays reach past the max distance: hits beyond it are visible.
+        let visible = own.iter().filter(|&&t| t > s.max_distance).count();
+        stats.sparse_ao.push(visible as f32 / k as f32);
     }
     bake.rays = stats.sparse_rays + stats.brute_rays;
     Ok((bake, stats))
@@ -400,7 +412,10 @@ fn filter_receiver(
         }
     }
     let neighbours = sc.neighbours.len() as u32;
-    if !any_occluder && sc.count.iter().all(|&c| c >= MIN_CELL_SAMPLES) {
+    // Early out: the neighbourhood's rays saw no occluder (and enough of
+    // them looked: at least one per cell on average).
+    let looked: u32 = sc.count.iter().map(|&c| c as u32).sum();
+    if !any_occluder && looked >= CELL_COUNT as u32 {
         return ReceiverResult {
             ao: 1.0,
             sh: sh::open_hemisphere(n),

@@ -259,7 +259,7 @@ pub fn bake_file(input: &Path, settings: &Settings) -> Result<Baked> {
 
 /// Bakes a loaded scene into lightmaps and the output GLB bytes.
 pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
-    if s.rays == 0 {
+    if s.method == Method::Mc && s.rays == 0 {
         return Err(Error::Option("--rays must be at least 1".into()));
     }
     if scene.baked_count() == 0 {

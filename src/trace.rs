@@ -36,6 +36,26 @@ pub fn offset_origin(p: Vec3, geo_normal: Vec3, footprint: f32) -> Vec3 {
     p + geo_normal * (ORIGIN_OFFSET + ORIGIN_OFFSET_FOOTPRINT * footprint)
 }
 
+/// obvhs's CWBVH node test clamps a box's entry distance to an absolute
+/// 1e-4 (`EPSILON` in obvhs 0.4 `cwbvh/node.rs`, marked "ray.tmin?"), so it
+/// culls every box a ray leaves before t = 1e-4 and loses hits closer than
+/// that: 1e-4 of the scene diagonal in bake space, e.g. a box resting 3 mm
+/// under a slab in Sponza. Rays therefore start this far behind their origin,
+/// with t_min at the same distance: boxes are entered after the clamp, and
+/// the triangle test's t_min still excludes everything behind the origin.
+const BOX_EPSILON_SHIFT: f32 = 2e-4;
+
+#[inline]
+fn shifted_ray(origin: Vec3, dir: Vec3, t_max: f32) -> Ray {
+    let dir = positive_zeros(dir);
+    Ray::new(
+        (origin - dir * BOX_EPSILON_SHIFT).into(),
+        dir.into(),
+        BOX_EPSILON_SHIFT,
+        t_max + BOX_EPSILON_SHIFT,
+    )
+}
+
 /// Turns -0.0 components into +0.0: obvhs picks the traversal octant from
 /// the sign bits while its inverse direction treats -0.0 as +0.0, and a
 /// ray along -z with -0.0 x and y components then misses everything.
@@ -88,7 +108,7 @@ impl Tracer {
     #[inline]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let Some(bvh) = &self.bvh else { return false };
-        let ray = Ray::new(origin.into(), positive_zeros(dir).into(), 0.0, t_max);
+        let ray = shifted_ray(origin, dir, t_max);
         !bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
     }
 
@@ -96,10 +116,8 @@ impl Tracer {
     /// (already lifted by [`offset_origin`]) on a surface with unit
     /// geometric normal `geo_normal`. A direction at or below the geometric
     /// tangent plane enters the surface itself, so it is occluded without
-    /// tracing. (Shading normals make ~8% of Sponza's cosine-weighted rays
-    /// do that. Tracing them is wasted work and unreliable: obvhs's CWBVH
-    /// traversal loses some hits within ~1e-5 of the origin, which Embree
-    /// reports.)
+    /// tracing (shading normals send ~8% of Sponza's cosine-weighted rays
+    /// there).
     #[inline]
     pub fn receiver_visible(&self, origin: Vec3, geo_normal: Vec3, dir: Vec3, t_max: f32) -> bool {
         dir.dot(geo_normal) > 0.0 && !self.occluded(origin, dir, t_max)
@@ -109,10 +127,10 @@ impl Tracer {
     #[inline]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<f32> {
         let bvh = self.bvh.as_ref()?;
-        let ray = Ray::new(origin.into(), positive_zeros(dir).into(), 0.0, t_max);
+        let ray = shifted_ray(origin, dir, t_max);
         let mut hit = RayHit::none();
         bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
-            .then_some(hit.t)
+            .then_some(hit.t - BOX_EPSILON_SHIFT)
     }
 }
 
@@ -161,6 +179,29 @@ mod tests {
         assert!(t.receiver_visible(Vec3::ZERO, n, Vec3::new(0.0, 0.6, 0.8), 1.0));
         assert!(!t.receiver_visible(Vec3::ZERO, n, Vec3::new(0.0, 0.8, -0.6), 1.0));
         assert!(!t.receiver_visible(Vec3::ZERO, n, Vec3::Y, 1.0));
+    }
+
+    #[test]
+    fn occluders_closer_than_the_bvh_epsilon_are_found() {
+        // A slab 3e-5 above the origin, inside a scene of unit diagonal
+        // (the BVH needs several levels: many small triangles).
+        let mut tris = Vec::new();
+        for i in 0..40 {
+            for j in 0..40 {
+                let (x, y) = (i as f32 / 40.0 - 0.5, j as f32 / 40.0 - 0.5);
+                let p = |a: f32, b: f32| Vec3A::new(x + a / 40.0, y + b / 40.0, 3e-5);
+                tris.push([p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0)]);
+                tris.push([p(0.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)]);
+            }
+        }
+        let t = Tracer::new(&tris);
+        for k in 0..100 {
+            let o = Vec3::new(k as f32 * 0.0071 - 0.35, 0.1234 - k as f32 * 0.003, 0.0);
+            let d = Vec3::new(0.3, -0.2, 1.0).normalize();
+            assert!(t.occluded(o, d, 1.0), "ray {k} missed a slab 3e-5 away");
+            let hit = t.closest_hit(o, d, 1.0).unwrap();
+            assert!((hit - 3e-5 / d.z).abs() < 2e-6, "t = {hit}");
+        }
     }
 
     #[test]

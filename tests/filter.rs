@@ -1,0 +1,213 @@
+//! The filtered method against closed forms and brute force, on scenes
+//! built to leak, and on degenerate input.
+
+mod common;
+use aobake::{Method, sh};
+use common::*;
+use glam::Vec3;
+use serde_json::json;
+
+fn filtered(resolution: u32, max_distance: Option<f64>) -> aobake::Settings {
+    aobake::Settings {
+        method: Method::Filtered,
+        ..settings(resolution, 0, max_distance)
+    }
+}
+
+#[test]
+fn open_plane_is_exactly_open() {
+    let g = glb(
+        &[quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true)],
+        plain_nodes(1),
+    );
+    let b = aobake::bake_scene(&scene(&g), &filtered(64, None)).unwrap();
+    let want = sh::open_hemisphere(Vec3::Z);
+    let stats = b.filter_stats.as_ref().unwrap();
+    assert_eq!(
+        stats.receivers_open as usize,
+        b.receivers.len(),
+        "every texel takes the open early-out"
+    );
+    assert_eq!(
+        stats.brute_rays, 0,
+        "no second pass where nothing is marked"
+    );
+    for i in 0..b.receivers.len() {
+        assert_eq!(b.bake.ao[i], 1.0);
+        assert_eq!(b.bake.sh[i], want);
+    }
+}
+
+#[test]
+fn parallel_plane_matches_closed_form() {
+    // As in tests/analytic.rs: AO = (h/D)^2 for a receiver under a plane.
+    let recv = quad([0.0; 3], [0.3, 0.0, 0.0], [0.0, 0.3, 0.0], true);
+    let occ = quad([0.0, 0.0, 1.0], [0.0, 2.2, 0.0], [2.2, 0.0, 0.0], true);
+    let g = glb(&[recv, occ], plain_nodes(2));
+    let b = aobake::bake_scene(&scene(&g), &filtered(256, Some(2.0))).unwrap();
+    let s = &b.geometry.space;
+    let mut sum = 0.0f64;
+    let mut n = 0;
+    for i in 0..b.receivers.len() {
+        let p = s.center.as_vec3() + b.receivers.position[i] * s.diagonal as f32;
+        if p.z.abs() < 1e-3 && p.x.abs() < 0.2 && p.y.abs() < 0.2 {
+            sum += b.bake.ao[i] as f64;
+            n += 1;
+        }
+    }
+    assert!(n > 50, "{n}");
+    let mean = sum / n as f64;
+    assert!((mean - 0.25).abs() < 0.03, "filtered AO {mean} vs 0.25");
+}
+
+/// A floor with a thin double-faced wall standing on it, and a low
+/// overhanging slab on one side only: the side under the slab is dark, the
+/// other side open. A filter that lends rays across the wall brightens the
+/// covered side or darkens the open one.
+fn thin_wall_scene() -> Vec<u8> {
+    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    // The wall at x = 0, 2 mm thick, both faces modelled.
+    let wall_a = quad([-0.001, 0.0, 0.3], [0.0, 1.0, 0.0], [0.0, 0.0, 0.3], true);
+    let wall_b = quad([0.001, 0.0, 0.3], [0.0, 0.0, 0.3], [0.0, 1.0, 0.0], true);
+    // A slab over the x < 0 side at height 0.08, facing down.
+    let slab = quad([-0.5, 0.0, 0.08], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0], true);
+    glb(&[floor, wall_a, wall_b, slab], plain_nodes(4))
+}
+
+#[test]
+fn no_leak_across_a_thin_wall() {
+    let g = thin_wall_scene();
+    let sc = scene(&g);
+    let mc = aobake::bake_scene(&sc, &settings(256, 512, Some(0.5))).unwrap();
+    let f = aobake::bake_scene(&sc, &filtered(256, Some(0.5))).unwrap();
+    assert_eq!(mc.receivers.texel, f.receivers.texel);
+    let s = &f.geometry.space;
+    // Floor texels within 0.1 of the wall on each side, and the wall faces.
+    let (mut covered, mut open, mut faces) = (vec![], vec![], vec![]);
+    for i in 0..f.receivers.len() {
+        let p = s.center.as_vec3() + f.receivers.position[i] * s.diagonal as f32;
+        let d = (f.bake.ao[i] - mc.bake.ao[i]) as f64;
+        if p.z.abs() < 1e-4 && p.y.abs() < 0.8 {
+            if (-0.1..-0.01).contains(&p.x) {
+                covered.push(d);
+            } else if (0.01..0.1).contains(&p.x) {
+                open.push(d);
+            }
+        } else if p.x.abs() < 0.002 && p.z > 0.01 && p.z < 0.07 {
+            faces.push(d);
+        }
+    }
+    for (name, v) in [
+        ("covered floor", &covered),
+        ("open floor", &open),
+        ("wall faces below the slab", &faces),
+    ] {
+        assert!(v.len() > 30, "{name}: {} texels", v.len());
+        let bias = v.iter().sum::<f64>() / v.len() as f64;
+        let mean_abs = v.iter().map(|d| d.abs()).sum::<f64>() / v.len() as f64;
+        assert!(
+            bias.abs() < 0.03 && mean_abs < 0.05,
+            "{name}: bias {bias:+.4}, mean |err| {mean_abs:.4}"
+        );
+    }
+}
+
+#[test]
+fn curtains_match_brute_force() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/assets/thin_cloth_curtains_intel_sponza.glb");
+    if !path.exists() {
+        eprintln!("note: {} not found, test skipped", path.display());
+        return;
+    }
+    let sc = aobake::load::load(&path).unwrap();
+    let mc = aobake::bake_scene(&sc, &settings(1024, 64, None)).unwrap();
+    let f = aobake::bake_scene(&sc, &filtered(1024, None)).unwrap();
+    let n = mc.bake.ao.len() as f64;
+    let bias = f
+        .bake
+        .ao
+        .iter()
+        .zip(&mc.bake.ao)
+        .map(|(a, b)| (a - b) as f64)
+        .sum::<f64>()
+        / n;
+    let rmse = (f
+        .bake
+        .ao
+        .iter()
+        .zip(&mc.bake.ao)
+        .map(|(a, b)| ((a - b) as f64).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    // A leak through the cloth shows as a large bright bias.
+    assert!(
+        bias.abs() < 0.01 && rmse < 0.05,
+        "curtains: bias {bias:+.4}, RMSE {rmse:.4}"
+    );
+}
+
+#[test]
+fn degenerate_and_sliver_triangles_never_give_nan() {
+    // A sliver, a zero-area triangle, a triangle with zero UV area after
+    // unwrapping (collinear), next to a normal quad, under a close plane.
+    let mut parts = vec![quad([0.0; 3], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], false)];
+    parts.push(MeshSpec {
+        positions: vec![
+            [0.0, 0.0, 0.001],
+            [1.0, 0.0, 0.001],
+            [0.5, 1e-7, 0.001],
+            [0.2, 0.2, 0.0],
+            [0.2, 0.2, 0.0],
+            [0.2, 0.2, 0.0],
+        ],
+        normals: None,
+        indices: vec![0, 1, 2, 3, 4, 5],
+    });
+    parts.push(quad(
+        [0.0, 0.0, 1e-4],
+        [0.0, 0.3, 0.0],
+        [0.3, 0.0, 0.0],
+        true,
+    ));
+    let g = glb(&parts, plain_nodes(3));
+    let b = aobake::bake_scene(&scene(&g), &filtered(64, None)).unwrap();
+    assert!(
+        b.bake
+            .ao
+            .iter()
+            .all(|a| a.is_finite() && (0.0..=1.0).contains(a))
+    );
+    assert!(b.bake.sh.iter().flatten().all(|c| c.is_finite()));
+    let covered = b.bake.ao.iter().filter(|&&a| a < 0.5).count();
+    let mc = aobake::bake_scene(&scene(&g), &settings(64, 64, None)).unwrap();
+    let covered_mc = mc.bake.ao.iter().filter(|&&a| a < 0.5).count();
+    assert!(
+        covered > 0,
+        "the plane 1e-4 above must darken part of the quad: filtered {covered}, mc {covered_mc}, of {}",
+        b.bake.ao.len()
+    );
+}
+
+#[test]
+fn filtered_output_is_identical_for_any_thread_count() {
+    let g = thin_wall_scene();
+    let run = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            aobake::bake_scene(&scene(&g), &filtered(64, Some(0.5)))
+                .unwrap()
+                .glb
+        })
+    };
+    assert!(run(1) == run(2));
+}
+
+#[allow(dead_code)]
+fn unused(_: serde_json::Value) -> serde_json::Value {
+    json!(null)
+}
