@@ -109,6 +109,9 @@ pub struct Samples {
     pub t: Vec<f32>,
 }
 
+/// Shading and geometric normals this close (cos 2.6 degrees) leave a
+/// negligible part of the shading hemisphere below the surface.
+const OPEN_NORMAL_AGREEMENT: f32 = 0.999;
 /// Normal agreement of the leak rule: cos 25 degrees.
 const NORMAL_AGREEMENT: f32 = 0.906;
 /// Largest tangent-plane distance of a neighbour, as a fraction of its
@@ -414,8 +417,10 @@ fn filter_receiver(
     let neighbours = sc.neighbours.len() as u32;
     // Early out: the neighbourhood's rays saw no occluder (and enough of
     // them looked: at least one per cell on average).
+    // The shading hemisphere must also lie above the geometric plane (within
+    // 2.6 degrees), or part of it is occluded by the surface itself.
     let looked: u32 = sc.count.iter().map(|&c| c as u32).sum();
-    if !any_occluder && looked >= CELL_COUNT as u32 {
+    if !any_occluder && looked >= CELL_COUNT as u32 && n.dot(geo) > OPEN_NORMAL_AGREEMENT {
         return ReceiverResult {
             ao: 1.0,
             sh: sh::open_hemisphere(n),

@@ -211,3 +211,29 @@ fn filtered_output_is_identical_for_any_thread_count() {
 fn unused(_: serde_json::Value) -> serde_json::Value {
     json!(null)
 }
+
+#[test]
+fn tilted_shading_normals_match_brute_force() {
+    // A plane whose shading normals lean 60 degrees off its geometric
+    // normal: the part of the shading hemisphere below the surface is
+    // occluded by the surface itself (AO well below 1, as Monte Carlo says).
+    let mut q = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    let (s, c) = (60f32.to_radians().sin(), 60f32.to_radians().cos());
+    q.normals = Some(vec![[0.0, s, c]; 4]);
+    let g = glb(&[q], plain_nodes(1));
+    let sc = scene(&g);
+    let mc = aobake::bake_scene(&sc, &settings(64, 256, None)).unwrap();
+    let f = aobake::bake_scene(&sc, &filtered(64, None)).unwrap();
+    let mean = |v: &[f32]| v.iter().map(|&a| a as f64).sum::<f64>() / v.len() as f64;
+    assert!(
+        mean(&mc.bake.ao) < 0.9,
+        "the surface occludes part of the hemisphere: {}",
+        mean(&mc.bake.ao)
+    );
+    assert!(
+        (mean(&f.bake.ao) - mean(&mc.bake.ao)).abs() < 0.02,
+        "filtered {} vs mc {}",
+        mean(&f.bake.ao),
+        mean(&mc.bake.ao)
+    );
+}
