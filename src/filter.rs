@@ -103,6 +103,10 @@ pub struct FilterStats {
 pub struct Samples {
     pub per_receiver: usize,
     pub dir: Vec<Vec3>,
+    /// Cell of each direction in its own receiver's frame (exact, from the
+    /// sample's point in the square): reused by neighbours with the same
+    /// normal, hence the same frame, which is most of a flat surface.
+    pub cell: Vec<u8>,
     /// Hit distance; `INFINITY` for a miss within [`sparse_t_max`];
     /// negative for a direction below the geometric horizon (it enters the
     /// receiver's own surface and says nothing about occluders).
@@ -168,6 +172,17 @@ pub fn weight(x: f32, radius: f32) -> f32 {
     }
 }
 
+/// [`weight`] from the squared offset (no square root in the hot loop).
+#[inline]
+pub fn weight_sq(x2: f32, radius: f32) -> f32 {
+    let q2 = x2.max(0.0) / (radius * radius);
+    if q2 < 1.0 {
+        (1.0 - q2) * (1.0 - q2)
+    } else {
+        0.0
+    }
+}
+
 /// Effective direction and tangent offset of a sample ray (origin `o`,
 /// direction `d`) re-aimed from `receiver` at `target` (Figure 6). `None`
 /// if the target is the receiver or the ray runs parallel to the plane.
@@ -204,20 +219,30 @@ pub fn sparse_pass(receivers: &Receivers, tracer: &Tracer, s: &FilterSettings) -
     let n = receivers.len();
     let mut dir = vec![Vec3::ZERO; n * k];
     let mut t = vec![0.0f32; n * k];
-    dir.par_chunks_mut(k * 64)
-        .zip(t.par_chunks_mut(k * 64))
+    let mut cell = vec![0u8; n * k];
+    const CHUNK: usize = 64;
+    dir.par_chunks_mut(k * CHUNK)
+        .zip(t.par_chunks_mut(k * CHUNK))
+        .zip(cell.par_chunks_mut(k * CHUNK))
         .enumerate()
-        .for_each(|(c, (dir, t))| {
-            for (local, (dirs, ts)) in dir.chunks_mut(k).zip(t.chunks_mut(k)).enumerate() {
-                let r = c * 64 + local;
+        .for_each(|(c, ((dir, t), cell))| {
+            for (local, ((dirs, ts), cells)) in dir
+                .chunks_mut(k)
+                .zip(t.chunks_mut(k))
+                .zip(cell.chunks_mut(k))
+                .enumerate()
+            {
+                let r = c * CHUNK + local;
                 let frame = Frame::from_normal(receivers.normal[r]);
                 let geo = receivers.geo_normal[r];
                 let origin = offset_origin(receivers.position[r], geo, receivers.footprint[r]);
                 let seed = receiver_seed(s.seed, receivers.texel[r] as u64, 1);
                 for i in 0..k {
-                    let d = frame
-                        .to_world(cosine_hemisphere(sobol_2d(i as u32, seed)))
-                        .normalize();
+                    let u = sobol_2d(i as u32, seed);
+                    let d = frame.to_world(cosine_hemisphere(u)).normalize();
+                    let side = crate::sample::CELLS_PER_SIDE as f32;
+                    cells[i] = ((u.y * side) as u8) * crate::sample::CELLS_PER_SIDE as u8
+                        + (u.x * side) as u8;
                     dirs[i] = d;
                     ts[i] = if d.dot(geo) <= 0.0 {
                         -1.0
@@ -233,6 +258,7 @@ pub fn sparse_pass(receivers: &Receivers, tracer: &Tracer, s: &FilterSettings) -
         per_receiver: k,
         dir,
         t,
+        cell,
     }
 }
 
@@ -388,6 +414,7 @@ fn filter_receiver(
     for &j in &sc.neighbours {
         let j = j as usize;
         let pj = receivers.position[j];
+        let same_frame = receivers.normal[j] == n;
         for i in j * k..(j + 1) * k {
             let t = samples.t[i];
             if t < 0.0 {
@@ -397,11 +424,19 @@ fn filter_receiver(
             if t.is_infinite() {
                 // Evidence that the direction is open: counted in its own
                 // cell, if it is above this receiver's surface.
-                let ld = frame.to_local(d);
-                if ld.z > 0.0 && d.dot(geo) > 0.0 {
-                    let c = cell_of_fast(ld);
-                    sc.count[c] = sc.count[c].saturating_add(1);
+                if d.dot(geo) <= 0.0 {
+                    continue;
                 }
+                let c = if same_frame {
+                    samples.cell[i] as usize
+                } else {
+                    let ld = frame.to_local(d);
+                    if ld.z <= 0.0 {
+                        continue;
+                    }
+                    cell_of_fast(ld)
+                };
+                sc.count[c] = sc.count[c].saturating_add(1);
             } else {
                 let v = pj + d * t - p;
                 let z = v.length();
@@ -470,9 +505,11 @@ fn filter_receiver(
         let j = j as usize;
         let pj = receivers.position[j];
         let rel = pj - p;
-        if rel.length_squared() > reach2 {
+        let rel2 = rel.length_squared();
+        if rel2 > reach2 {
             continue;
         }
+        let same_frame = receivers.normal[j] == n;
         for i in j * k..(j + 1) * k {
             let t = samples.t[i];
             if t < 0.0 {
@@ -482,11 +519,15 @@ fn filter_receiver(
             let (target, hit) = if t.is_finite() {
                 (pj + d * t, true)
             } else {
-                let ld = frame.to_local(d);
-                if ld.z <= 0.0 {
-                    continue;
-                }
-                let c0 = cell_of_fast(ld);
+                let c0 = if same_frame {
+                    samples.cell[i] as usize
+                } else {
+                    let ld = frame.to_local(d);
+                    if ld.z <= 0.0 {
+                        continue;
+                    }
+                    cell_of_fast(ld)
+                };
                 let mid = sc.mid[c0];
                 if mid.is_infinite() {
                     // Target at infinity: the effective direction is the
@@ -494,8 +535,17 @@ fn filter_receiver(
                     if sc.brute[c0] {
                         continue;
                     }
-                    let x = (rel - d * rel.dot(d)).length();
-                    sc.w[c0] += weight(x, sc.radius[c0]);
+                    let along = rel.dot(d);
+                    let w = weight_sq(rel2 - along * along, sc.radius[c0]);
+                    sc.w[c0] += w;
+                    if w > 0.0 && d.dot(geo) <= 0.0 {
+                        // Into the receiver's own surface: occluded.
+                        sc.occ[c0] += w;
+                        let y = sh::basis(d);
+                        for (acc, yk) in sc.occ_sh[c0].iter_mut().zip(y) {
+                            *acc += w * yk;
+                        }
+                    }
                     continue;
                 } else {
                     let centre = frame.to_world(CELL_CENTRES[c0]);
@@ -641,6 +691,10 @@ mod tests {
         assert_eq!(weight(0.3, f32::INFINITY), 1.0);
         assert_eq!(weight(0.3, 0.0), 0.0);
         assert!(weight(0.5, 1.0) > weight(0.6, 1.0));
+        for x in [0.0f32, 0.3, 0.99, 1.5] {
+            assert!((weight_sq(x * x, 1.3) - weight(x, 1.3)).abs() < 1e-6);
+        }
+        assert_eq!(weight_sq(-1e-9, 1.0), 1.0);
     }
 
     #[test]
