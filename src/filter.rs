@@ -67,7 +67,7 @@ impl Default for FilterSettings {
     fn default() -> Self {
         FilterSettings {
             sparse_rays: 8,
-            gather_radius: 8.0,
+            gather_radius: 4.0,
             omega_v_max: 2.0,
             min_weight: 2.0,
             cell_rays: 2,
