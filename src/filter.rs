@@ -113,6 +113,8 @@ pub struct Samples {
     pub t: Vec<f32>,
 }
 
+/// Fewest hits in a cell for its z_max to be trusted in Eq. 8.
+const MIN_DEPTH_HITS: u16 = 8;
 /// Shading and geometric normals this close (cos 2.6 degrees) leave a
 /// negligible part of the shading hemisphere below the surface.
 const OPEN_NORMAL_AGREEMENT: f32 = 0.999;
@@ -268,6 +270,7 @@ struct Scratch {
     z_min: [f32; CELL_COUNT],
     z_max: [f32; CELL_COUNT],
     count: [u16; CELL_COUNT],
+    hits: [u16; CELL_COUNT],
     radius: [f32; CELL_COUNT],
     mid: [f32; CELL_COUNT],
     brute: [bool; CELL_COUNT],
@@ -283,6 +286,7 @@ impl Scratch {
             z_min: [0.0; CELL_COUNT],
             z_max: [0.0; CELL_COUNT],
             count: [0; CELL_COUNT],
+            hits: [0; CELL_COUNT],
             radius: [0.0; CELL_COUNT],
             mid: [0.0; CELL_COUNT],
             brute: [false; CELL_COUNT],
@@ -410,6 +414,7 @@ fn filter_receiver(
     sc.z_min = [f32::INFINITY; CELL_COUNT];
     sc.z_max = [0.0; CELL_COUNT];
     sc.count = [0; CELL_COUNT];
+    sc.hits = [0; CELL_COUNT];
     let mut any_occluder = false;
     for &j in &sc.neighbours {
         let j = j as usize;
@@ -443,6 +448,7 @@ fn filter_receiver(
                 if v.dot(n) > 0.0 && z <= d_max && z > 0.0 {
                     let c = cell_of_fast(frame.to_local(v / z));
                     sc.z_min[c] = sc.z_min[c].min(z);
+                    sc.hits[c] = sc.hits[c].saturating_add(1);
                     sc.z_max[c] = sc.z_max[c].max(z);
                     any_occluder = true;
                 }
@@ -487,6 +493,14 @@ fn filter_receiver(
             }
         } else {
             sc.brute[c] = needs_brute_force(lo, s.omega_v_max, footprint);
+            // z_max from fewer than MIN_DEPTH_HITS hits underestimates the
+            // depth range (one hit gives z_min = z_max: an unbounded radius),
+            // so such cells use z_max = infinity: radius z_min / Omega_v.
+            let hi = if sc.hits[c] < MIN_DEPTH_HITS {
+                f32::INFINITY
+            } else {
+                hi
+            };
             sc.radius[c] = spatial_radius(lo, hi, s.omega_v_max);
             sc.mid[c] = mid_depth(lo, hi);
             if !sc.brute[c] {
