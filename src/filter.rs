@@ -376,6 +376,18 @@ pub fn bake(
     filter_pass(receivers, &samples, tracer, s, progress)
 }
 
+/// The cell of sample `i`'s own direction in the receiver's `frame`: cached
+/// when the sample's receiver shares the frame, else computed; `None` below
+/// the receiver's hemisphere.
+#[inline]
+fn sample_cell(samples: &Samples, i: usize, same_frame: bool, frame: &Frame) -> Option<usize> {
+    if same_frame {
+        return Some(samples.cell[i] as usize);
+    }
+    let ld = frame.to_local(samples.dir[i]);
+    (ld.z > 0.0).then(|| cell_of_fast(ld))
+}
+
 fn filter_receiver(
     receivers: &Receivers,
     samples: &Samples,
@@ -432,14 +444,8 @@ fn filter_receiver(
                 if d.dot(geo) <= 0.0 {
                     continue;
                 }
-                let c = if same_frame {
-                    samples.cell[i] as usize
-                } else {
-                    let ld = frame.to_local(d);
-                    if ld.z <= 0.0 {
-                        continue;
-                    }
-                    cell_of_fast(ld)
+                let Some(c) = sample_cell(samples, i, same_frame, &frame) else {
+                    continue;
                 };
                 sc.count[c] = sc.count[c].saturating_add(1);
             } else {
@@ -533,14 +539,8 @@ fn filter_receiver(
             let (target, hit) = if t.is_finite() {
                 (pj + d * t, true)
             } else {
-                let c0 = if same_frame {
-                    samples.cell[i] as usize
-                } else {
-                    let ld = frame.to_local(d);
-                    if ld.z <= 0.0 {
-                        continue;
-                    }
-                    cell_of_fast(ld)
+                let Some(c0) = sample_cell(samples, i, same_frame, &frame) else {
+                    continue;
                 };
                 let mid = sc.mid[c0];
                 if mid.is_infinite() {

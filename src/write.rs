@@ -326,69 +326,19 @@ pub fn build_glb(
         let charted = &atlas.meshes[k];
         let what = format!("meshes[{}].primitives[{}]", g.mesh, g.primitive);
         let mut prim = doc.json["meshes"][g.mesh]["primitives"][g.primitive].clone();
-        if let Some(set) = options.existing_uv {
-            let mut ext = prim_ext.clone();
-            ext["texCoord"] = json!(set);
-            set_extension(&mut prim, ext);
-            edits.push(PrimitiveEdit {
-                node: inst.node,
-                mesh: g.mesh,
-                primitive: g.primitive,
-                json: prim,
-            });
-            continue;
-        }
-        let attrs = prim["attributes"]
-            .as_object()
-            .ok_or_else(|| Error::Invalid(format!("{what}.attributes is not an object")))?
-            .clone();
-        let mut new_attrs = serde_json::Map::new();
-        for (name, acc) in &attrs {
-            let a = acc.as_u64().ok_or_else(|| {
-                Error::Invalid(format!("{what}.attributes.{name} is not an index"))
-            })?;
-            let raw = accessor::read(doc, a as usize)?;
-            if raw.count != g.positions.len() {
-                return Err(Error::Invalid(format!(
-                    "{what}.attributes.{name} has {} elements, POSITION has {}",
-                    raw.count,
-                    g.positions.len()
-                )));
-            }
-            let had_bounds =
-                doc.json["accessors"][a as usize].get("min").is_some() || name == "POSITION";
-            new_attrs.insert(
-                name.clone(),
-                json!(gather_accessor(
-                    &mut json,
-                    &mut bin,
-                    &raw,
-                    &charted.xref,
-                    had_bounds
-                )),
-            );
-        }
-        let tex_coord = (0..)
-            .find(|n| !attrs.contains_key(&format!("TEXCOORD_{n}")))
-            .unwrap_or(0);
-        if tex_coord > 3 {
-            warnings.push(format!(
-                "{what}: the lightmap UVs are TEXCOORD_{tex_coord}; several engines read only TEXCOORD_0..3"
-            ));
-        }
-        let uv: Vec<f32> = charted.uv.iter().flatten().copied().collect();
-        let uv_acc = f32_accessor(&mut json, &mut bin, &uv, "VEC2", 2);
-        new_attrs.insert(format!("TEXCOORD_{tex_coord}"), json!(uv_acc));
-        prim["attributes"] = Value::Object(new_attrs);
-        prim["indices"] = json!(index_accessor(
-            &mut json,
-            &mut bin,
-            &charted.triangles,
-            charted.xref.len()
-        ));
-        if prim.get("mode").is_some() {
-            prim["mode"] = json!(4);
-        }
+        let tex_coord = match options.existing_uv {
+            Some(set) => set,
+            None => add_lightmap_uvs(
+                &mut json,
+                &mut bin,
+                doc,
+                &mut prim,
+                charted,
+                g.positions.len(),
+                &what,
+                warnings,
+            )?,
+        };
         let mut ext = prim_ext.clone();
         ext["texCoord"] = json!(tex_coord);
         set_extension(&mut prim, ext);
@@ -425,6 +375,67 @@ pub fn build_glb(
     }
     json["buffers"][0]["byteLength"] = json!(bin.data.len());
     Ok(glb_bytes(&json, &bin.data))
+}
+
+/// Re-indexes a primitive's attributes through the unwrapper's vertex map
+/// into new accessors and adds the atlas UVs as `TEXCOORD_n` (n = the lowest
+/// free index) with new triangle-list indices. Returns n.
+#[allow(clippy::too_many_arguments)]
+fn add_lightmap_uvs(
+    json: &mut Value,
+    bin: &mut Bin,
+    doc: &crate::load::Document,
+    prim: &mut Value,
+    charted: &crate::unwrap::ChartedMesh,
+    vertex_count: usize,
+    what: &str,
+    warnings: &mut Vec<String>,
+) -> Result<usize> {
+    let attrs = prim["attributes"]
+        .as_object()
+        .ok_or_else(|| Error::Invalid(format!("{what}.attributes is not an object")))?
+        .clone();
+    let mut new_attrs = serde_json::Map::new();
+    for (name, acc) in &attrs {
+        let a = acc
+            .as_u64()
+            .ok_or_else(|| Error::Invalid(format!("{what}.attributes.{name} is not an index")))?;
+        let raw = accessor::read(doc, a as usize)?;
+        if raw.count != vertex_count {
+            return Err(Error::Invalid(format!(
+                "{what}.attributes.{name} has {} elements, POSITION has {}",
+                raw.count, vertex_count
+            )));
+        }
+        let had_bounds =
+            doc.json["accessors"][a as usize].get("min").is_some() || name == "POSITION";
+        new_attrs.insert(
+            name.clone(),
+            json!(gather_accessor(json, bin, &raw, &charted.xref, had_bounds)),
+        );
+    }
+    let tex_coord = (0..)
+        .find(|n| !attrs.contains_key(&format!("TEXCOORD_{n}")))
+        .unwrap_or(0);
+    if tex_coord > 3 {
+        warnings.push(format!(
+                "{what}: the lightmap UVs are TEXCOORD_{tex_coord}; several engines read only TEXCOORD_0..3"
+            ));
+    }
+    let uv: Vec<f32> = charted.uv.iter().flatten().copied().collect();
+    let uv_acc = f32_accessor(json, bin, &uv, "VEC2", 2);
+    new_attrs.insert(format!("TEXCOORD_{tex_coord}"), json!(uv_acc));
+    prim["attributes"] = Value::Object(new_attrs);
+    prim["indices"] = json!(index_accessor(
+        json,
+        bin,
+        &charted.triangles,
+        charted.xref.len()
+    ));
+    if prim.get("mode").is_some() {
+        prim["mode"] = json!(4);
+    }
+    Ok(tex_coord)
 }
 
 /// Sets `extensions.AOBAKE_lightmap` of a primitive, keeping other extensions.

@@ -255,16 +255,6 @@ fn instanced_mesh_gets_a_region_per_node_and_the_same_ao() {
 #[test]
 fn output_is_identical_for_any_thread_count() {
     let g = transformed_scene(1.0, [0.0; 3]);
-    let run = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
-            aobake::bake_scene(&scene(&g), &settings(64, 32, Some(1.0)))
-                .unwrap()
-                .glb
-        })
-    };
+    let run = |threads| glb_on_threads(&g, &settings(64, 32, Some(1.0)), threads);
     assert!(run(1) == run(2), "1-thread and 2-thread bakes differ");
 }

@@ -5,7 +5,6 @@ mod common;
 use aobake::{Method, sh};
 use common::*;
 use glam::Vec3;
-use serde_json::json;
 
 fn filtered(resolution: u32, max_distance: Option<f64>) -> aobake::Settings {
     aobake::Settings {
@@ -193,23 +192,8 @@ fn degenerate_and_sliver_triangles_never_give_nan() {
 #[test]
 fn filtered_output_is_identical_for_any_thread_count() {
     let g = thin_wall_scene();
-    let run = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
-            aobake::bake_scene(&scene(&g), &filtered(64, Some(0.5)))
-                .unwrap()
-                .glb
-        })
-    };
+    let run = |threads| glb_on_threads(&g, &filtered(64, Some(0.5)), threads);
     assert!(run(1) == run(2));
-}
-
-#[allow(dead_code)]
-fn unused(_: serde_json::Value) -> serde_json::Value {
-    json!(null)
 }
 
 #[test]

@@ -144,3 +144,12 @@ pub fn split(glb: &[u8]) -> (Value, Vec<u8>) {
     };
     (json, bin)
 }
+
+/// The output GLB of a bake run on a pool of `threads` threads.
+pub fn glb_on_threads(g: &[u8], s: &aobake::Settings, threads: usize) -> Vec<u8> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(|| aobake::bake_scene(&scene(g), s).unwrap().glb)
+}
