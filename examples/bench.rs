@@ -6,7 +6,8 @@
 //!         [--reference 2048] [--runs mc:16,mc:64,mc:256,filtered] [--dump-rays DIR]
 //!
 //! `filtered` takes the default filter settings; `filtered:K:R:C:O` sets sparse
-//! rays K, gather radius R (texels), brute-force rays per cell C and Omega_v O. Prints markdown tables; all figures
+//! rays K, gather radius R (texels), brute-force rays per cell C, Omega_v O and
+//! min weight W (`filtered:K:R:C:O:W`). Prints markdown tables; all figures
 //! come from one run on one machine. `--dump-rays DIR` also writes 2M of the
 //! bake's Monte Carlo rays for `tools/embree_compare.py` and times obvhs on them.
 
@@ -182,6 +183,9 @@ fn main() {
                 }
                 if let Some(o) = parts.get(4) {
                     f.omega_v_max = o.parse().unwrap();
+                }
+                if let Some(w) = parts.get(5) {
+                    f.min_weight = w.parse().unwrap();
                 }
                 Settings {
                     method: Method::Filtered,

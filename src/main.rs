@@ -68,6 +68,9 @@ struct Cli {
     /// Filtered: brute-force rays per hemisphere cell the filter cannot serve.
     #[arg(long, default_value_t = FilterOptions::default().cell_rays)]
     cell_rays: u32,
+    /// Filtered: cells with less filter weight (about that many samples) are brute-forced.
+    #[arg(long, default_value_t = FilterOptions::default().min_weight)]
+    min_weight: f32,
     /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.
     #[arg(long)]
     debug_dir: Option<PathBuf>,
@@ -150,6 +153,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             gather_radius: cli.gather_radius,
             omega_v_max: cli.omega_v,
             cell_rays: cli.cell_rays,
+            min_weight: cli.min_weight,
         },
         debug_dir: cli.debug_dir.clone(),
         max_distance: cli.max_distance,

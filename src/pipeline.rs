@@ -50,6 +50,8 @@ pub struct FilterOptions {
     pub gather_radius: f32,
     pub omega_v_max: f32,
     pub cell_rays: u32,
+    /// Cells with less filter weight are brute-forced (about that many samples).
+    pub min_weight: f32,
 }
 
 impl Default for FilterOptions {
@@ -60,6 +62,7 @@ impl Default for FilterOptions {
             gather_radius: d.gather_radius,
             omega_v_max: d.omega_v_max,
             cell_rays: d.cell_rays,
+            min_weight: d.min_weight,
         }
     }
 }
@@ -341,9 +344,9 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
                 gather_radius: s.filter.gather_radius,
                 omega_v_max: s.filter.omega_v_max,
                 cell_rays: s.filter.cell_rays.max(1),
+                min_weight: s.filter.min_weight.max(0.0),
                 max_distance: mc_settings.max_distance,
                 seed: s.seed,
-                ..Default::default()
             };
             if !(fs.gather_radius >= 0.0 && fs.gather_radius.is_finite()) {
                 return Err(Error::Option(format!(
