@@ -232,11 +232,9 @@ fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
         },
     );
     pb.set_style(
-        ProgressStyle::with_template(
-            "{msg:>10} [{bar:40}] {pos}/{len} texels, {per_sec}, eta {eta}",
-        )
-        .expect("template")
-        .progress_chars("=> "),
+        ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, {per_sec}, eta {eta}")
+            .expect("template")
+            .progress_chars("=> "),
     );
     pb.set_message(msg);
     pb
@@ -292,7 +290,16 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
                 padding: s.padding,
                 packing: s.packing,
             };
-            unwrap::unwrap(&geometry.receivers, &options, diagonal)?
+            let pb = bar(s.progress, 0, "unwrap");
+            let report = |stage: &'static str, done: usize, total: Option<usize>| {
+                pb.set_message(stage);
+                pb.set_length(total.unwrap_or(done + 1) as u64);
+                pb.set_position(done as u64);
+            };
+            let atlas =
+                unwrap::unwrap_with_progress(&geometry.receivers, &options, diagonal, &report);
+            pb.finish_and_clear();
+            atlas?
         }
         (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
             unwrap::existing(scene, &geometry.receivers, set, r)?

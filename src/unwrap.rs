@@ -65,6 +65,16 @@ pub struct Atlas {
 /// Unwraps all receiver meshes into one page. `diagonal` converts a world
 /// texel density into bake space.
 pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -> Result<Atlas> {
+    unwrap_with_progress(meshes, options, diagonal, &|_, _, _| {})
+}
+
+/// [`unwrap`], reporting (stage name, done, total if known) as it goes.
+pub fn unwrap_with_progress(
+    meshes: &[ReceiverMesh],
+    options: &UnwrapOptions,
+    diagonal: f64,
+    progress: &(dyn Fn(&'static str, usize, Option<usize>) + Sync),
+) -> Result<Atlas> {
     let density = match options.size {
         AtlasSize::Resolution(r) => {
             if !(16..=MAX_ATLAS_EDGE).contains(&r) {
@@ -100,7 +110,17 @@ pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -
         },
         ..Default::default()
     };
-    let atlas = uvunwrap::generate(&inputs, &opts).map_err(|e| Error::Unwrap(e.to_string()))?;
+    let atlas = uvunwrap::generate_with_progress(&inputs, &opts, |p| {
+        let stage = match p.stage {
+            uvunwrap::Stage::Segmenting => "segmenting",
+            uvunwrap::Stage::Parameterizing => "flattening",
+            uvunwrap::Stage::Packing => "packing",
+            _ => "unwrapping",
+        };
+        progress(stage, p.done, p.total);
+        true
+    })
+    .map_err(|e| Error::Unwrap(e.to_string()))?;
     if atlas.page_count > 1 {
         return Err(Error::Limit(format!(
             "the {} charts cannot share one atlas page with padding {} (they need {} pages); raise --resolution or lower --padding",
