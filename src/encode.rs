@@ -3,8 +3,8 @@
 //! In: [`Receivers`], their [`Bake`], the dilation map. Out: a float
 //! [`Lightmap`] (AO and 9 SH channels for every texel) and its [`Encoded`]
 //! form per the output contract: AO as an 8-bit grey PNG, SH as three RGBA8
-//! PNGs with per-coefficient scale and offset (c_i = shScale[i] * channel_i +
-//! shOffset[i]; c0..c3 = T0.rgba, c4..c7 = T1.rgba, c8 = T2.r). Optionally a
+//! PNGs with per-coefficient scale and offset (`c_i = shScale[i] * channel_i +
+//! shOffset[i]`; c0..c3 = T0.rgba, c4..c7 = T1.rgba, c8 = T2.r). Optionally a
 //! float EXR with channels `ao`, `sh0`..`sh8`.
 
 use crate::dilate::NONE;

@@ -3,7 +3,7 @@
 //!
 //! The pipeline has one module per stage, in order:
 //! [`load`] -> [`unwrap`] -> [`rasterize`] -> [`trace`] -> [`mc`] (with
-//! [`sample`] and [`sh`]) -> [`dilate`] -> [`encode`] -> [`write`];
+//! [`sample`] and [`sh`]) -> [`dilate`] -> [`encode`] -> [`write`](mod@write);
 //! [`pipeline`] runs them. See the README for the output format.
 
 pub mod dilate;
