@@ -11,6 +11,7 @@
 //! come from one run on one machine. `--dump-rays DIR` also writes 2M of the
 //! bake's Monte Carlo rays for `tools/embree_compare.py` and times obvhs on them.
 
+use aobake::metrics::error_stats;
 use aobake::pipeline::{self, Baked, FilterOptions, Method, Settings};
 use aobake::rasterize::Receivers;
 use aobake::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};
@@ -20,15 +21,6 @@ use rayon::prelude::*;
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
-
-fn rmse(a: &[f32], b: &[f32]) -> f64 {
-    (a.iter()
-        .zip(b)
-        .map(|(x, y)| ((x - y) as f64).powi(2))
-        .sum::<f64>()
-        / a.len() as f64)
-        .sqrt()
-}
 
 /// The first `per` rays of every `stride`-th receiver, as the MC baker casts
 /// them: [ox, oy, oz, dx, dy, dz, t_max, geometric normal] in bake space.
@@ -210,31 +202,16 @@ fn main() {
             .filter(|s| ["trace", "sparse pass", "filter pass"].contains(&s.stage))
             .map(|s| s.seconds)
             .sum();
-        let mut err: Vec<f32> = b
-            .bake
-            .ao
-            .iter()
-            .zip(&reference.bake.ao)
-            .map(|(x, y)| (x - y).abs())
-            .collect();
-        let bias = b
-            .bake
-            .ao
-            .iter()
-            .zip(&reference.bake.ao)
-            .map(|(x, y)| (x - y) as f64)
-            .sum::<f64>()
-            / err.len() as f64;
-        err.sort_by(f32::total_cmp);
-        let p99 = err[(err.len() as f64 * 0.99) as usize];
+        let ao = error_stats(&b.bake.ao, &reference.bake.ao);
+        let sh = error_stats(&flat(&b.bake.sh), &ref_sh);
         println!(
             "| {run} | {total:.2} | {work:.2} | {:.1} | {:.2} | {:.4} | {:+.4} | {:.3} | {:.4} | {} |",
             rep.rays_per_texel_total,
             rep.rays_cast as f64 / work / 1e6,
-            rmse(&b.bake.ao, &reference.bake.ao),
-            bias,
-            p99,
-            rmse(&flat(&b.bake.sh), &ref_sh),
+            ao.rmse,
+            ao.bias,
+            ao.p99,
+            sh.rmse,
             rep.filter.as_ref().map_or("-".into(), |f| format!(
                 "{:.1}%",
                 100.0 * f.cells_brute_forced

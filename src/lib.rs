@@ -12,6 +12,7 @@ pub mod error;
 pub mod filter;
 pub mod load;
 pub mod mc;
+pub mod metrics;
 pub mod pipeline;
 pub mod rasterize;
 pub mod sample;

@@ -122,24 +122,8 @@ fn curtains_match_brute_force() {
     let sc = aobake::load::load(&path).unwrap();
     let mc = aobake::bake_scene(&sc, &settings(1024, 64, None)).unwrap();
     let f = aobake::bake_scene(&sc, &filtered(1024, None)).unwrap();
-    let n = mc.bake.ao.len() as f64;
-    let bias = f
-        .bake
-        .ao
-        .iter()
-        .zip(&mc.bake.ao)
-        .map(|(a, b)| (a - b) as f64)
-        .sum::<f64>()
-        / n;
-    let rmse = (f
-        .bake
-        .ao
-        .iter()
-        .zip(&mc.bake.ao)
-        .map(|(a, b)| ((a - b) as f64).powi(2))
-        .sum::<f64>()
-        / n)
-        .sqrt();
+    let e = aobake::metrics::error_stats(&f.bake.ao, &mc.bake.ao);
+    let (bias, rmse) = (e.bias, e.rmse);
     // A leak through the cloth shows as a large bright bias.
     assert!(
         bias.abs() < 0.01 && rmse < 0.05,
