@@ -572,10 +572,7 @@ fn filter_receiver(
                     if w > 0.0 && d.dot(geo) <= 0.0 {
                         // Into the receiver's own surface: occluded.
                         sc.occ[c0] += w;
-                        let y = sh::basis(d);
-                        for (acc, yk) in sc.occ_sh[c0].iter_mut().zip(y) {
-                            *acc += w * yk;
-                        }
+                        sh::accumulate(&mut sc.occ_sh[c0], w, d);
                     }
                     continue;
                 } else {
@@ -612,10 +609,7 @@ fn filter_receiver(
             sc.w[c] += w;
             if occluded {
                 sc.occ[c] += w;
-                let y = sh::basis(e);
-                for (acc, yk) in sc.occ_sh[c].iter_mut().zip(y) {
-                    *acc += w * yk;
-                }
+                sh::accumulate(&mut sc.occ_sh[c], w, e);
             }
         }
     }
@@ -651,10 +645,7 @@ fn filter_receiver(
             brute_rays += traced as u32;
             if !tracer.receiver_visible(origin, geo, d, d_max) {
                 occ_ao += inv;
-                let y = sh::basis(d);
-                for (acc, yk) in occ_sh.iter_mut().zip(y) {
-                    *acc += inv * yk;
-                }
+                sh::accumulate(&mut occ_sh, inv, d);
             }
         }
     }

@@ -84,10 +84,7 @@ pub fn integrate_receiver(
             .normalize();
         if tracer.receiver_visible(origin, geo, dir, s.max_distance) {
             visible += 1;
-            let y = sh::basis(dir);
-            for k in 0..SH_COUNT {
-                acc[k] += y[k];
-            }
+            sh::accumulate(&mut acc, 1.0, dir);
         }
     }
     let inv = 1.0 / s.rays.max(1) as f32;

@@ -30,6 +30,14 @@ pub fn basis(w: Vec3) -> [f32; SH_COUNT] {
     ]
 }
 
+/// Adds `weight * Y_i(w)` to each coefficient of `acc`.
+#[inline]
+pub fn accumulate(acc: &mut [f32; SH_COUNT], weight: f32, w: Vec3) {
+    for (a, y) in acc.iter_mut().zip(basis(w)) {
+        *a += weight * y;
+    }
+}
+
 /// Clamped-cosine convolution factors A_l (Ramamoorthi-Hanrahan):
 /// A_0 = pi, A_1 = 2pi/3, A_2 = pi/4.
 pub const CLAMPED_COSINE_BAND: [f32; 3] = [

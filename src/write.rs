@@ -119,15 +119,11 @@ fn gather_accessor(
         acc["normalized"] = json!(true);
     }
     if with_bounds && !xref.is_empty() {
-        let plain = RawAccessor {
-            normalized: false,
-            bytes: bytes
-                .chunks_exact(stride)
-                .flat_map(|e| e[..es].to_vec())
-                .collect(),
-            ..raw.clone()
-        };
-        let (lo, hi) = bounds(&plain);
+        let (lo, hi) = bounds(
+            &raw.stored_values(),
+            raw.dims,
+            xref.iter().map(|&x| x as usize),
+        );
         let num = |v: f32| {
             if raw.component == Component::F32 {
                 json!(v)
@@ -141,41 +137,19 @@ fn gather_accessor(
     push(json, "accessors", acc)
 }
 
-/// Per-component min and max of an accessor's raw (unnormalized) values.
-fn bounds(raw: &RawAccessor) -> (Vec<f32>, Vec<f32>) {
-    let mut lo = vec![f32::INFINITY; raw.dims];
-    let mut hi = vec![f32::NEG_INFINITY; raw.dims];
-    let vals: Vec<f32> = match raw.dims {
-        1 => raw
-            .to_f32::<1>("")
-            .unwrap_or_default()
-            .into_iter()
-            .flatten()
-            .collect(),
-        2 => raw
-            .to_f32::<2>("")
-            .unwrap_or_default()
-            .into_iter()
-            .flatten()
-            .collect(),
-        3 => raw
-            .to_f32::<3>("")
-            .unwrap_or_default()
-            .into_iter()
-            .flatten()
-            .collect(),
-        4 => raw
-            .to_f32::<4>("")
-            .unwrap_or_default()
-            .into_iter()
-            .flatten()
-            .collect(),
-        _ => Vec::new(),
-    };
-    for e in vals.chunks_exact(raw.dims) {
-        for k in 0..raw.dims {
-            lo[k] = lo[k].min(e[k]);
-            hi[k] = hi[k].max(e[k]);
+/// Per-component min and max of the elements of `values` (flat, `dims`
+/// components each) picked by `elements`.
+fn bounds(
+    values: &[f32],
+    dims: usize,
+    elements: impl Iterator<Item = usize>,
+) -> (Vec<f32>, Vec<f32>) {
+    let mut lo = vec![f32::INFINITY; dims];
+    let mut hi = vec![f32::NEG_INFINITY; dims];
+    for e in elements {
+        for k in 0..dims {
+            lo[k] = lo[k].min(values[e * dims + k]);
+            hi[k] = hi[k].max(values[e * dims + k]);
         }
     }
     (lo, hi)
@@ -184,14 +158,7 @@ fn bounds(raw: &RawAccessor) -> (Vec<f32>, Vec<f32>) {
 fn f32_accessor(json: &mut Value, bin: &mut Bin, data: &[f32], ty: &str, dims: usize) -> usize {
     let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
     let view = bin.push_view(json, &bytes, None, Some(34962));
-    let mut lo = vec![f32::INFINITY; dims];
-    let mut hi = vec![f32::NEG_INFINITY; dims];
-    for e in data.chunks_exact(dims) {
-        for k in 0..dims {
-            lo[k] = lo[k].min(e[k]);
-            hi[k] = hi[k].max(e[k]);
-        }
-    }
+    let (lo, hi) = bounds(data, dims, 0..data.len() / dims);
     let mut acc =
         json!({"bufferView": view, "componentType": 5126, "count": data.len() / dims, "type": ty});
     if !data.is_empty() {

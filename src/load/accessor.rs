@@ -122,6 +122,16 @@ impl RawAccessor {
             .collect())
     }
 
+    /// Every component as f32, as stored (never normalized): the domain of
+    /// an accessor's `min` and `max`.
+    pub fn stored_values(&self) -> Vec<f32> {
+        let cs = self.component.size();
+        self.bytes
+            .chunks_exact(cs)
+            .map(|b| self.component.read(b, false))
+            .collect()
+    }
+
     /// Elements as u32 indices (u8/u16/u32 scalars only).
     pub fn to_indices(&self, what: &str) -> Result<Vec<u32>> {
         if self.dims != 1
