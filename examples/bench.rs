@@ -11,31 +11,28 @@
 //! come from one run on one machine. `--dump-rays DIR` also writes 2M of the
 //! bake's Monte Carlo rays for `tools/embree_compare.py` and times obvhs on them.
 
+use aobake::mc::ReceiverRays;
 use aobake::metrics::error_stats;
 use aobake::pipeline::{self, Baked, FilterOptions, Method, Settings};
 use aobake::rasterize::Receivers;
-use aobake::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};
-use aobake::trace::{Tracer, offset_origin};
+use aobake::trace::Tracer;
 use aobake::unwrap::AtlasSize;
 use rayon::prelude::*;
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-/// The first `per` rays of every `stride`-th receiver, as the MC baker casts
-/// them: [ox, oy, oz, dx, dy, dz, t_max, geometric normal] in bake space.
+/// The first `per` rays of every `stride`-th receiver, exactly as the MC
+/// baker (seed 1) casts them: [ox, oy, oz, dx, dy, dz, t_max, geometric
+/// normal] in bake space.
 fn sample_rays(r: &Receivers, per: u32, stride: usize, t_max: f32) -> Vec<[f32; 10]> {
     (0..r.len())
         .step_by(stride)
         .flat_map(|i| {
-            let frame = Frame::from_normal(r.normal[i]);
-            let o = offset_origin(r.position[i], r.geo_normal[i], r.footprint[i]);
-            let g = r.geo_normal[i];
-            let seed = receiver_seed(1, r.texel[i] as u64, 0);
+            let rays = ReceiverRays::new(r, i, 1);
+            let (o, g) = (rays.origin, rays.geo_normal);
             (0..per).map(move |k| {
-                let d = frame
-                    .to_world(cosine_hemisphere(sobol_2d(k, seed)))
-                    .normalize();
+                let d = rays.direction(k);
                 [o.x, o.y, o.z, d.x, d.y, d.z, t_max, g.x, g.y, g.z]
             })
         })

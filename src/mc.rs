@@ -11,6 +11,7 @@ use crate::rasterize::Receivers;
 use crate::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};
 use crate::sh::{self, SH_COUNT};
 use crate::trace::{Tracer, offset_origin};
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Per-receiver bake result.
@@ -64,6 +65,37 @@ pub fn bake(
     }
 }
 
+/// The Monte Carlo rays of one receiver: a lifted origin and, for each ray
+/// index, a direction from the receiver's own scrambled sequence.
+#[derive(Clone, Copy, Debug)]
+pub struct ReceiverRays {
+    pub origin: Vec3,
+    pub geo_normal: Vec3,
+    frame: Frame,
+    seed: u64,
+}
+
+impl ReceiverRays {
+    /// The rays of receiver `r` for bake seed `seed`.
+    pub fn new(receivers: &Receivers, r: usize, seed: u64) -> ReceiverRays {
+        let geo_normal = receivers.geo_normal[r];
+        ReceiverRays {
+            origin: offset_origin(receivers.position[r], geo_normal, receivers.footprint[r]),
+            geo_normal,
+            frame: Frame::from_normal(receivers.normal[r]),
+            seed: receiver_seed(seed, receivers.texel[r] as u64, 0),
+        }
+    }
+
+    /// Direction of ray `i` (cosine-weighted around the shading normal).
+    #[inline]
+    pub fn direction(&self, i: u32) -> Vec3 {
+        self.frame
+            .to_world(cosine_hemisphere(sobol_2d(i, self.seed)))
+            .normalize()
+    }
+}
+
 /// Estimates AO and SH of receiver `r` with `s.rays` rays.
 pub fn integrate_receiver(
     receivers: &Receivers,
@@ -71,18 +103,12 @@ pub fn integrate_receiver(
     tracer: &Tracer,
     s: &McSettings,
 ) -> (f32, [f32; SH_COUNT]) {
-    let n = receivers.normal[r];
-    let frame = Frame::from_normal(n);
-    let geo = receivers.geo_normal[r];
-    let origin = offset_origin(receivers.position[r], geo, receivers.footprint[r]);
-    let seed = receiver_seed(s.seed, receivers.texel[r] as u64, 0);
+    let rays = ReceiverRays::new(receivers, r, s.seed);
     let mut visible = 0u32;
     let mut acc = [0.0f32; SH_COUNT];
     for i in 0..s.rays {
-        let dir = frame
-            .to_world(cosine_hemisphere(sobol_2d(i, seed)))
-            .normalize();
-        if tracer.receiver_visible(origin, geo, dir, s.max_distance) {
+        let dir = rays.direction(i);
+        if tracer.receiver_visible(rays.origin, rays.geo_normal, dir, s.max_distance) {
             visible += 1;
             sh::accumulate(&mut acc, 1.0, dir);
         }
