@@ -204,12 +204,9 @@ impl Scene {
             }
         };
 
-        let mut scene = Scene {
-            doc: doc.clone(),
-            geometries: Vec::new(),
-            instances: Vec::new(),
-            warnings: Vec::new(),
-        };
+        let mut geometries: Vec<PrimitiveGeometry> = Vec::new();
+        let mut instances: Vec<Instance> = Vec::new();
+        let mut warnings: Vec<String> = Vec::new();
         let mut geometry_of: HashMap<(usize, usize), Option<usize>> = HashMap::new();
         let mut visited = vec![false; nodes.len()];
         let mut stack: Vec<(usize, DMat4)> =
@@ -251,21 +248,28 @@ impl Scene {
                 None => vec![world],
             };
             if skinned {
-                scene.warn(format!(
-                    "{what}: skinned mesh {mi} occludes in its rest pose but is not baked"
-                ));
+                warn(
+                    &mut warnings,
+                    format!("{what}: skinned mesh {mi} occludes in its rest pose but is not baked"),
+                );
             }
             if gpu.is_some() {
-                scene.warn(format!(
-                    "{what}: {} EXT_mesh_gpu_instancing copies of mesh {mi} occlude but are not baked",
-                    placements.len()
-                ));
+                warn(
+                    &mut warnings,
+                    format!(
+                        "{what}: {} EXT_mesh_gpu_instancing copies of mesh {mi} occlude but are not baked",
+                        placements.len()
+                    ),
+                );
             }
             for (pi, _) in array(mesh, "primitives").iter().enumerate() {
                 let g = match geometry_of.get(&(mi, pi)) {
                     Some(g) => *g,
                     None => {
-                        let g = scene.decode_primitive(mi, pi)?;
+                        let g = decode_primitive(&doc, mi, pi)?.map(|geometry| {
+                            geometries.push(geometry);
+                            geometries.len() - 1
+                        });
                         if g.is_none() {
                             skipped_modes += 1;
                         }
@@ -274,20 +278,23 @@ impl Scene {
                     }
                 };
                 let Some(g) = g else { continue };
-                if scene.geometries[g].morphed && !skinned && gpu.is_none() {
-                    scene.warn(format!(
-                        "meshes[{mi}].primitives[{pi}]: morph targets; occludes in its base pose but is not baked"
-                    ));
+                if geometries[g].morphed && !skinned && gpu.is_none() {
+                    warn(
+                        &mut warnings,
+                        format!(
+                            "meshes[{mi}].primitives[{pi}]: morph targets; occludes in its base pose but is not baked"
+                        ),
+                    );
                 }
-                let baked = !skinned && gpu.is_none() && !scene.geometries[g].morphed;
-                triangle_total += scene.geometries[g].triangles.len() / 3 * placements.len();
+                let baked = !skinned && gpu.is_none() && !geometries[g].morphed;
+                triangle_total += geometries[g].triangles.len() / 3 * placements.len();
                 if triangle_total > MAX_TRIANGLES {
                     return Err(Error::Limit(format!(
                         "the scene has more than {MAX_TRIANGLES} triangles (all instances)"
                     )));
                 }
                 for &transform in &placements {
-                    scene.instances.push(Instance {
+                    instances.push(Instance {
                         node: ni,
                         geometry: g,
                         transform,
@@ -297,83 +304,19 @@ impl Scene {
             }
         }
         if skipped_modes > 0 {
-            scene.warn(format!(
-                "{skipped_modes} point or line primitive(s) are neither baked nor occluders"
-            ));
+            warn(
+                &mut warnings,
+                format!(
+                    "{skipped_modes} point or line primitive(s) are neither baked nor occluders"
+                ),
+            );
         }
-        Ok(scene)
-    }
-
-    fn warn(&mut self, line: String) {
-        if !self.warnings.contains(&line) {
-            self.warnings.push(line);
-        }
-    }
-
-    /// Decodes `meshes[mi].primitives[pi]`; `None` for points and lines.
-    fn decode_primitive(&mut self, mi: usize, pi: usize) -> Result<Option<usize>> {
-        let doc = &self.doc;
-        let what = format!("meshes[{mi}].primitives[{pi}]");
-        let prim = &array(&doc.json, "meshes")[mi]["primitives"][pi];
-        for ext in COMPRESSION_EXTENSIONS {
-            if prim.pointer(&format!("/extensions/{ext}")).is_some() {
-                return Err(Error::Unsupported(format!(
-                    "{what} uses {ext}: compressed geometry cannot be read; decompress it first (e.g. gltf-transform copy)"
-                )));
-            }
-        }
-        let mode = prim
-            .get("mode")
-            .map_or(Some(4), Value::as_u64)
-            .unwrap_or(99);
-        if mode > 6 {
-            return Err(Error::Invalid(format!("{what}.mode is invalid")));
-        }
-        if mode < 4 {
-            return Ok(None);
-        }
-        let pos_acc = field_usize(&prim["attributes"], "POSITION", &what)?
-            .ok_or_else(|| Error::Invalid(format!("{what} has no POSITION attribute")))?;
-        let positions: Vec<[f32; 3]> = accessor::read(doc, pos_acc)?.to_f32::<3>(&what)?;
-        if let Some(v) = positions
-            .iter()
-            .position(|p| !p.iter().all(|c| c.is_finite()))
-        {
-            return Err(Error::Invalid(format!(
-                "{what}: POSITION (accessors[{pos_acc}]) is not finite at vertex {v}"
-            )));
-        }
-        let normals = match field_usize(&prim["attributes"], "NORMAL", &what)? {
-            Some(n) => {
-                let n = accessor::read(doc, n)?.to_f32::<3>(&what)?;
-                (n.len() == positions.len()).then_some(n)
-            }
-            None => None,
-        };
-        let indices: Vec<u32> = match field_usize(prim, "indices", &what)? {
-            Some(i) => accessor::read(doc, i)?.to_indices(&what)?,
-            None => (0..positions.len() as u32).collect(),
-        };
-        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
-            return Err(Error::Invalid(format!(
-                "{what}: index {bad} points past the {} vertices",
-                positions.len()
-            )));
-        }
-        let triangles = triangle_list(mode, &indices);
-        let morphed = prim
-            .get("targets")
-            .and_then(Value::as_array)
-            .is_some_and(|t| !t.is_empty());
-        self.geometries.push(PrimitiveGeometry {
-            mesh: mi,
-            primitive: pi,
-            positions,
-            normals,
-            triangles,
-            morphed,
-        });
-        Ok(Some(self.geometries.len() - 1))
+        Ok(Scene {
+            doc,
+            geometries,
+            instances,
+            warnings,
+        })
     }
 
     /// Number of placements that receive a lightmap.
@@ -467,6 +410,77 @@ impl Scene {
             receivers,
         })
     }
+}
+
+/// Adds a warning unless the same line is already there.
+fn warn(warnings: &mut Vec<String>, line: String) {
+    if !warnings.contains(&line) {
+        warnings.push(line);
+    }
+}
+
+/// Decodes `meshes[mi].primitives[pi]`; `None` for points and lines.
+fn decode_primitive(doc: &Document, mi: usize, pi: usize) -> Result<Option<PrimitiveGeometry>> {
+    let what = format!("meshes[{mi}].primitives[{pi}]");
+    let prim = &array(&doc.json, "meshes")[mi]["primitives"][pi];
+    for ext in COMPRESSION_EXTENSIONS {
+        if prim.pointer(&format!("/extensions/{ext}")).is_some() {
+            return Err(Error::Unsupported(format!(
+                "{what} uses {ext}: compressed geometry cannot be read; decompress it first (e.g. gltf-transform copy)"
+            )));
+        }
+    }
+    let mode = prim
+        .get("mode")
+        .map_or(Some(4), Value::as_u64)
+        .unwrap_or(99);
+    if mode > 6 {
+        return Err(Error::Invalid(format!("{what}.mode is invalid")));
+    }
+    if mode < 4 {
+        return Ok(None);
+    }
+    let pos_acc = field_usize(&prim["attributes"], "POSITION", &what)?
+        .ok_or_else(|| Error::Invalid(format!("{what} has no POSITION attribute")))?;
+    let positions: Vec<[f32; 3]> = accessor::read(doc, pos_acc)?.to_f32::<3>(&what)?;
+    if let Some(v) = positions
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
+        return Err(Error::Invalid(format!(
+            "{what}: POSITION (accessors[{pos_acc}]) is not finite at vertex {v}"
+        )));
+    }
+    let normals = match field_usize(&prim["attributes"], "NORMAL", &what)? {
+        Some(n) => {
+            let n = accessor::read(doc, n)?.to_f32::<3>(&what)?;
+            (n.len() == positions.len()).then_some(n)
+        }
+        None => None,
+    };
+    let indices: Vec<u32> = match field_usize(prim, "indices", &what)? {
+        Some(i) => accessor::read(doc, i)?.to_indices(&what)?,
+        None => (0..positions.len() as u32).collect(),
+    };
+    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+        return Err(Error::Invalid(format!(
+            "{what}: index {bad} points past the {} vertices",
+            positions.len()
+        )));
+    }
+    let triangles = triangle_list(mode, &indices);
+    let morphed = prim
+        .get("targets")
+        .and_then(Value::as_array)
+        .is_some_and(|t| !t.is_empty());
+    Ok(Some(PrimitiveGeometry {
+        mesh: mi,
+        primitive: pi,
+        positions,
+        normals,
+        triangles,
+        morphed,
+    }))
 }
 
 /// Per-instance transforms of an EXT_mesh_gpu_instancing node.
