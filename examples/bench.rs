@@ -210,9 +210,73 @@ fn main() {
             ao.p99,
             sh.rmse,
             rep.filter.as_ref().map_or("-".into(), |f| format!(
-                "{:.1}%",
-                100.0 * f.cells_brute_forced
+                "{:.1}% ({:.1}% contact)",
+                100.0 * f.cells_brute_forced,
+                100.0 * f.cells_brute_contact
             )),
+        );
+        if args.iter().any(|a| a == "--breakdown")
+            && let Some(fs) = &b.filter_stats
+        {
+            breakdown(fs, &b.bake.ao, &reference.bake.ao);
+            // Nearest occluder and max distance in texel footprints: the
+            // filter's spatial radius is at most z_min / Omega_v.
+            let d_max = (rep.max_distance / b.geometry.space.diagonal) as f32;
+            let mut z: Vec<f32> = fs
+                .z_min
+                .iter()
+                .zip(&b.receivers.footprint)
+                .map(|(z, f)| z.min(d_max) / f.max(1e-12))
+                .collect();
+            z.sort_by(f32::total_cmp);
+            let mut dm: Vec<f32> = b
+                .receivers
+                .footprint
+                .iter()
+                .map(|f| d_max / f.max(1e-12))
+                .collect();
+            dm.sort_by(f32::total_cmp);
+            let q = |v: &[f32], p: f64| v[((v.len() - 1) as f64 * p) as usize];
+            println!(
+                "\nnearest occluder, texel footprints: p10 {:.1}, median {:.1}, p90 {:.1}; max distance: median {:.1} footprints; mean neighbours {:.1}",
+                q(&z, 0.1),
+                q(&z, 0.5),
+                q(&z, 0.9),
+                q(&dm, 0.5),
+                fs.neighbours.iter().map(|&n| n as f64).sum::<f64>() / fs.neighbours.len() as f64
+            );
+        }
+    }
+}
+
+/// Where a filtered bake's AO error comes from: texels binned by their
+/// fraction of brute-forced cells, each bin's share of the squared error.
+fn breakdown(fs: &aobake::filter::FilterStats, ao: &[f32], reference: &[f32]) {
+    const BINS: usize = 5;
+    let mut count = [0usize; BINS];
+    let mut sq = [0f64; BINS];
+    let mut bias = [0f64; BINS];
+    for i in 0..ao.len() {
+        let b = ((fs.brute_fraction[i] * BINS as f32) as usize).min(BINS - 1);
+        let e = (ao[i] - reference[i]) as f64;
+        count[b] += 1;
+        sq[b] += e * e;
+        bias[b] += e;
+    }
+    let total: f64 = sq.iter().sum();
+    println!(
+        "\n| brute fraction | texels | RMSE | bias | share of squared error |\n|---|---|---|---|---|"
+    );
+    for b in 0..BINS {
+        let n = count[b].max(1) as f64;
+        println!(
+            "| {:.1}-{:.1} | {} | {:.4} | {:+.4} | {:.1}% |",
+            b as f32 / BINS as f32,
+            (b + 1) as f32 / BINS as f32,
+            count[b],
+            (sq[b] / n).sqrt(),
+            bias[b] / n,
+            100.0 * sq[b] / total.max(1e-30)
         );
     }
 }

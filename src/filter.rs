@@ -103,6 +103,10 @@ pub struct FilterStats {
     /// no neighbour ray saw an occluder in (open).
     pub cells_filtered: u64,
     pub cells_brute: u64,
+    /// Of `cells_brute`: cells sent to brute force by the paper's bandlimit
+    /// test (an occluder closer than 2 Omega_v footprints), the rest for too
+    /// little weight.
+    pub cells_contact: u64,
     pub cells_open: u64,
     /// Receivers whose whole neighbourhood saw no occluder.
     pub receivers_open: u64,
@@ -320,6 +324,7 @@ struct ReceiverResult {
     sh: [f32; SH_COUNT],
     filtered: u32,
     brute: u32,
+    contact: u32,
     open: u32,
     brute_rays: u32,
     z_min: f32,
@@ -366,6 +371,7 @@ pub fn filter_pass(
         stats.brute_rays += res.brute_rays as u64;
         stats.cells_filtered += res.filtered as u64;
         stats.cells_brute += res.brute as u64;
+        stats.cells_contact += res.contact as u64;
         stats.cells_open += res.open as u64;
         stats.receivers_open += (res.open as usize == CELL_COUNT) as u64;
         stats
@@ -490,6 +496,7 @@ fn filter_receiver(
             sh: sh::open_hemisphere(n),
             filtered: 0,
             brute: 0,
+            contact: 0,
             open: CELL_COUNT as u32,
             brute_rays: 0,
             z_min: f32::INFINITY,
@@ -620,6 +627,7 @@ fn filter_receiver(
     let mut occ_ao = 0.0f32;
     let mut occ_sh = [0.0f32; SH_COUNT];
     let (mut filtered, mut brute, mut open, mut brute_rays) = (0u32, 0u32, 0u32, 0u32);
+    let mut contact = 0u32;
     let inv_cells = 1.0 / CELL_COUNT as f32;
     for c in 0..CELL_COUNT {
         if !sc.brute[c] && sc.w[c] >= s.min_weight {
@@ -636,6 +644,8 @@ fn filter_receiver(
             continue;
         }
         brute += 1;
+        contact += (sc.z_min[c].is_finite()
+            && needs_brute_force(sc.z_min[c], s.omega_v_max, footprint)) as u32;
         let m = s.cell_rays.max(1);
         let inv = inv_cells / m as f32;
         for q in 0..m {
@@ -655,6 +665,7 @@ fn filter_receiver(
         sh: std::array::from_fn(|i| open_sh[i] - occ_sh[i]),
         filtered,
         brute,
+        contact,
         open,
         brute_rays,
         z_min: nearest,

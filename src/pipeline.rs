@@ -167,6 +167,10 @@ pub struct FilterReport {
     /// Fractions of all hemisphere cells (64 per texel).
     pub cells_filtered: f64,
     pub cells_brute_forced: f64,
+    /// Of all cells: brute-forced by the paper's bandlimit test (occluder
+    /// closer than 2 Omega_v texel footprints); the rest of
+    /// `cells_brute_forced` had too little filter weight.
+    pub cells_brute_contact: f64,
     pub cells_open: f64,
     /// Fraction of texels whose whole neighbourhood saw no occluder.
     pub texels_open: f64,
@@ -420,6 +424,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         second_pass_rays: f.brute_rays,
         cells_filtered: f.cells_filtered as f64 / cells,
         cells_brute_forced: f.cells_brute as f64 / cells,
+        cells_brute_contact: f.cells_contact as f64 / cells,
         cells_open: f.cells_open as f64 / cells,
         texels_open: f.receivers_open as f64 / receivers.len() as f64,
         sparse_pass_seconds: t.seconds("sparse pass"),
