@@ -68,7 +68,13 @@ pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Ligh
     })
 }
 
-fn png(width: u32, height: u32, data: &[u8], color: image::ExtendedColorType) -> Result<Vec<u8>> {
+/// An 8-bit PNG of `data` (rows top to bottom) in the given colour type.
+pub fn png(
+    width: u32,
+    height: u32,
+    data: &[u8],
+    color: image::ExtendedColorType,
+) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     image::codecs::png::PngEncoder::new(&mut out)
         .write_image(data, width, height, color)

@@ -41,7 +41,12 @@ enum OcclusionArg {
 
 /// Bake ambient occlusion and SH9 directional occlusion lightmaps into a glTF file.
 #[derive(Parser, Debug)]
-#[command(name = "aobake", version, about)]
+#[command(
+    name = "aobake",
+    version,
+    about,
+    after_help = "Also: aobake report IN [options]  measures AO/SH error against run time for each method (see aobake report --help)."
+)]
 struct Cli {
     /// Input .glb or .gltf.
     input: PathBuf,
@@ -112,9 +117,52 @@ struct Cli {
     quiet: bool,
 }
 
+/// Measure what quality each second buys on a scene: bakes a high-ray Monte
+/// Carlo reference, sweeps both methods over a ladder of budgets on the same
+/// atlas, and writes report.json, report.md, error_vs_time.svg/.png and
+/// error maps.
+#[derive(Parser, Debug)]
+#[command(name = "aobake report", version)]
+struct ReportCli {
+    /// Input .glb or .gltf.
+    input: PathBuf,
+    /// Directory for the report files.
+    #[arg(long, default_value = "aobake-report")]
+    out: PathBuf,
+    /// Atlas page edge in texels.
+    #[arg(long, default_value_t = 512)]
+    resolution: u32,
+    /// Rays per texel of the Monte Carlo reference.
+    #[arg(long, default_value_t = 2048)]
+    reference_rays: u32,
+    /// Runs: mc:RAYS and filtered:SPARSE_RAYS:GATHER_RADIUS[:CELL_RAYS[:OMEGA_V[:MIN_WEIGHT]]], comma-separated.
+    #[arg(long, default_value = aobake::report::DEFAULT_BUDGETS)]
+    budgets: String,
+    /// Random seed of the runs (the reference uses a different one).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Max occluder distance in world units [default: 0.1 x scene diagonal].
+    #[arg(long)]
+    max_distance: Option<f64>,
+    /// Monte Carlo rays of the 1e-4 / 1e4 scale-stability bakes (0: skip them).
+    #[arg(long, default_value_t = 64)]
+    stability_rays: u32,
+    /// Worker threads [default: all cores].
+    #[arg(long)]
+    threads: Option<usize>,
+    /// No progress bar and no summary.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(&cli) {
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let result = if args.get(1).is_some_and(|a| a == "report") {
+        run_report(&ReportCli::parse_from(&args[1..]))
+    } else {
+        run(&Cli::parse_from(&args))
+    };
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("aobake: error: {e}");
@@ -123,12 +171,49 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(cli: &Cli) -> anyhow::Result<()> {
-    if let Some(n) = cli.threads {
+fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(n) = threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()?;
     }
+    Ok(())
+}
+
+fn run_report(cli: &ReportCli) -> anyhow::Result<()> {
+    set_threads(cli.threads)?;
+    let settings = aobake::report::ReportSettings {
+        resolution: cli.resolution,
+        reference_rays: cli.reference_rays,
+        budgets: aobake::report::parse_budgets(&cli.budgets)?,
+        seed: cli.seed,
+        max_distance: cli.max_distance,
+        stability_rays: cli.stability_rays,
+        progress: !cli.quiet,
+    };
+    let start = std::time::Instant::now();
+    let scene = aobake::load::load(&cli.input)?;
+    let load_seconds = start.elapsed().as_secs_f64();
+    let sweep = aobake::report::sweep(
+        &scene,
+        &cli.input.display().to_string(),
+        load_seconds,
+        &settings,
+    )?;
+    let report = aobake::report::write_report(&sweep, &cli.out)?;
+    if !cli.quiet {
+        print!("{}", aobake::report::markdown(&report));
+        eprintln!(
+            "aobake: report written to {} ({})",
+            cli.out.display(),
+            report.files.join(", ")
+        );
+    }
+    Ok(())
+}
+
+fn run(cli: &Cli) -> anyhow::Result<()> {
+    set_threads(cli.threads)?;
     let settings = Settings {
         size: match cli.texel_density {
             Some(t) => AtlasSize::TexelDensity(t),

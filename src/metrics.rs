@@ -3,8 +3,11 @@
 //!
 //! In: two equally long slices of per-receiver values. Out: an [`ErrorStats`].
 
+use crate::sh::{BAND, SH_COUNT};
+use serde::Serialize;
+
 /// Error statistics of `values` against `reference`.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct ErrorStats {
     pub rmse: f64,
     /// Mean signed error (positive: too bright / too large).
@@ -42,9 +45,140 @@ pub fn error_stats(values: &[f32], reference: &[f32]) -> ErrorStats {
     }
 }
 
+/// RMSE of SH coefficients per band (L0: c0; L1: c1..c3; L2: c4..c8),
+/// over every receiver and every coefficient of the band.
+pub fn sh_band_rmse(values: &[[f32; SH_COUNT]], reference: &[[f32; SH_COUNT]]) -> [f64; 3] {
+    assert_eq!(
+        values.len(),
+        reference.len(),
+        "compared bakes differ in size"
+    );
+    let mut sum2 = [0.0f64; 3];
+    let mut count = [0usize; 3];
+    for (v, r) in values.iter().zip(reference) {
+        for i in 0..SH_COUNT {
+            let d = v[i] as f64 - r[i] as f64;
+            sum2[BAND[i]] += d * d;
+            count[BAND[i]] += 1;
+        }
+    }
+    std::array::from_fn(|b| {
+        if count[b] == 0 {
+            0.0
+        } else {
+            (sum2[b] / count[b] as f64).sqrt()
+        }
+    })
+}
+
+/// Where a decreasing cost/error curve first reaches `target` error:
+/// `points` are (cost, error) pairs in any order; the curve is their lower
+/// envelope in cost order (the best error any run at that cost or less
+/// reached), interpolated linearly in log-log between runs. `None` if no run
+/// reaches the target or an input is not positive and finite. When even the
+/// cheapest run is at or below the target, its cost is returned (an upper
+/// bound).
+pub fn cost_at_error(points: &[(f64, f64)], target: f64) -> Option<f64> {
+    let ok = |v: f64| v.is_finite() && v > 0.0;
+    if !ok(target) {
+        return None;
+    }
+    let mut pts: Vec<(f64, f64)> = points
+        .iter()
+        .copied()
+        .filter(|&(c, e)| ok(c) && ok(e))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut prev: Option<(f64, f64)> = None;
+    for (c, e) in pts {
+        let e = prev.map_or(e, |(_, pe)| e.min(pe));
+        if e <= target {
+            return Some(match prev {
+                None => c,
+                Some((pc, pe)) if pe > e && c > pc => {
+                    let f = (target.ln() - pe.ln()) / (e.ln() - pe.ln());
+                    (pc.ln() + f * (c.ln() - pc.ln())).exp()
+                }
+                Some(_) => c,
+            });
+        }
+        prev = Some((c, e));
+    }
+    None
+}
+
+/// The value of a curve at `x`, interpolated linearly in log-log between
+/// the two nearest points (`points` sorted or not; `None` outside their
+/// range or for non-positive input).
+pub fn loglog_at(points: &[(f64, f64)], x: f64) -> Option<f64> {
+    let ok = |v: f64| v.is_finite() && v > 0.0;
+    let mut pts: Vec<(f64, f64)> = points
+        .iter()
+        .copied()
+        .filter(|&(a, b)| ok(a) && ok(b))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if let Some(&(_, y)) = pts.iter().find(|p| p.0 == x) {
+        return Some(y);
+    }
+    let i = pts.iter().position(|p| p.0 > x)?;
+    if i == 0 {
+        return None;
+    }
+    let ((x0, y0), (x1, y1)) = (pts[i - 1], pts[i]);
+    let f = (x.ln() - x0.ln()) / (x1.ln() - x0.ln());
+    Some((y0.ln() + f * (y1.ln() - y0.ln())).exp())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sh_band_rmse_separates_bands() {
+        let r = vec![[0.1f32; SH_COUNT]; 50];
+        assert_eq!(sh_band_rmse(&r, &r), [0.0; 3]);
+        // Offset only c2 (band 1) by 0.3: band-1 RMSE = sqrt(0.09 / 3).
+        let mut v = r.clone();
+        for c in &mut v {
+            c[2] += 0.3;
+        }
+        let e = sh_band_rmse(&v, &r);
+        assert_eq!(e[0], 0.0);
+        assert!((e[1] - (0.09f64 / 3.0).sqrt()).abs() < 1e-6);
+        assert_eq!(e[2], 0.0);
+    }
+
+    #[test]
+    fn cost_at_error_on_power_laws() {
+        // error = 1 / sqrt(cost): error 0.1 at cost 100 exactly.
+        let curve: Vec<(f64, f64)> = [1.0, 10.0, 1000.0, 10000.0]
+            .iter()
+            .map(|&c: &f64| (c, 1.0 / c.sqrt()))
+            .collect();
+        assert!((cost_at_error(&curve, 0.1).unwrap() - 100.0).abs() < 1e-9);
+        // Half the error at every cost: reaches 0.1 at cost 25 (4x cheaper).
+        let better: Vec<(f64, f64)> = curve.iter().map(|&(c, e)| (c, e / 2.0)).collect();
+        assert!((cost_at_error(&better, 0.1).unwrap() - 25.0).abs() < 1e-9);
+        // Never reached; a run worse than a cheaper one does not count.
+        assert_eq!(cost_at_error(&curve, 1e-3), None);
+        let bumpy = [(1.0, 0.5), (2.0, 0.9), (4.0, 0.05)];
+        let c = cost_at_error(&bumpy, 0.1).unwrap();
+        assert!(c > 2.0 && c < 4.0, "{c}");
+        // Already below the target at the cheapest run; bad input.
+        assert_eq!(cost_at_error(&[(3.0, 0.01)], 0.1), Some(3.0));
+        assert_eq!(cost_at_error(&[(f64::NAN, 0.01)], 0.1), None);
+        assert_eq!(cost_at_error(&curve, 0.0), None);
+    }
+
+    #[test]
+    fn loglog_interpolation() {
+        let curve = [(64.0, 0.02), (16.0, 0.04), (256.0, 0.01)];
+        assert_eq!(loglog_at(&curve, 64.0), Some(0.02));
+        assert!((loglog_at(&curve, 128.0).unwrap() - 0.02 / 2f64.sqrt()).abs() < 1e-12);
+        assert_eq!(loglog_at(&curve, 512.0), None);
+        assert_eq!(loglog_at(&curve, 8.0), None);
+    }
 
     #[test]
     fn a_bake_against_itself_has_no_error_and_an_offset_shows_as_bias() {

@@ -226,7 +226,7 @@ impl Timer {
     }
 }
 
-fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
+pub(crate) fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
     let pb = ProgressBar::with_draw_target(
         Some(len),
         if show && std::io::stderr().is_terminal() {
@@ -264,6 +264,182 @@ pub fn bake_file(input: &Path, settings: &Settings) -> Result<Baked> {
 
 /// Bakes a loaded scene into lightmaps and the output GLB bytes.
 pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
+    let start = Instant::now();
+    let prepared = prepare(scene, s)?;
+    let passes = bake_prepared(&prepared, s)?;
+    let Output {
+        lightmap,
+        encoded,
+        glb,
+        warnings,
+        stages: output_stages,
+    } = output(scene, &prepared, &passes, s)?;
+    let BakePasses {
+        bake,
+        filter_stats,
+        stages: pass_stages,
+    } = passes;
+    let Prepared {
+        geometry,
+        atlas,
+        receivers,
+        tracer,
+        max_distance_world,
+        stages,
+        ..
+    } = prepared;
+    let mut t = Timer::new();
+    t.start = start;
+    t.stages = stages;
+    t.stages.extend(pass_stages);
+    t.stages.extend(output_stages);
+    let trace_s = t.seconds("trace") + t.seconds("sparse pass") + t.seconds("filter pass");
+    let cells = (receivers.len() * crate::sample::CELL_COUNT) as f64;
+    let filter_report = filter_stats.as_ref().map(|f| FilterReport {
+        sparse_rays_per_texel: s.filter.sparse_rays,
+        gather_radius_texels: s.filter.gather_radius,
+        omega_v_max: s.filter.omega_v_max,
+        cell_rays: s.filter.cell_rays,
+        sparse_rays: f.sparse_rays,
+        second_pass_rays: f.brute_rays,
+        cells_filtered: f.cells_filtered as f64 / cells,
+        cells_brute_forced: f.cells_brute as f64 / cells,
+        cells_brute_contact: f.cells_contact as f64 / cells,
+        cells_open: f.cells_open as f64 / cells,
+        texels_open: f.receivers_open as f64 / receivers.len() as f64,
+        sparse_pass_seconds: t.seconds("sparse pass"),
+        filter_pass_seconds: t.seconds("filter pass"),
+        mean_neighbours: f.neighbours.iter().map(|&n| n as f64).sum::<f64>()
+            / receivers.len() as f64,
+    });
+    let report = Report {
+        input: String::new(),
+        method: s.method,
+        atlas_width: atlas.width,
+        atlas_height: atlas.height,
+        charts: atlas.charts,
+        utilization: atlas.utilization,
+        texels: receivers.len(),
+        baked_primitives: geometry.receivers.len(),
+        occluder_triangles: tracer.triangle_count(),
+        rays_per_texel: if s.method == Method::Mc { s.rays } else { 0 },
+        rays_cast: bake.rays,
+        rays_per_texel_total: bake.rays as f64 / receivers.len() as f64,
+        filter: filter_report,
+        rays_per_second: if trace_s > 0.0 {
+            bake.rays as f64 / trace_s
+        } else {
+            0.0
+        },
+        max_distance: max_distance_world,
+        seed: s.seed,
+        threads: rayon::current_num_threads(),
+        total_seconds: t.start.elapsed().as_secs_f64(),
+        stages: t.stages,
+        warnings,
+    };
+    Ok(Baked {
+        geometry,
+        atlas,
+        receivers,
+        bake,
+        filter_stats,
+        lightmap,
+        encoded,
+        glb,
+        report,
+    })
+}
+/// What every bake of one scene shares: geometry in bake space, the atlas,
+/// its receivers and the BVH (every stage before the first ray).
+pub struct Prepared {
+    pub geometry: BakeGeometry,
+    pub atlas: Atlas,
+    pub receivers: Receivers,
+    pub tracer: Tracer,
+    /// Max occluder distance in world units.
+    pub max_distance_world: f64,
+    /// The same in bake units.
+    pub max_distance: f32,
+    /// Wall times of the stages so far.
+    pub stages: Vec<StageTime>,
+}
+
+/// What a method's passes over prepared receivers produced.
+pub struct BakePasses {
+    pub bake: Bake,
+    /// Filtered method only.
+    pub filter_stats: Option<filter::FilterStats>,
+    /// `trace` (Monte Carlo), or `sparse pass` and `filter pass` (filtered).
+    pub stages: Vec<StageTime>,
+}
+
+/// What the output stages produced.
+pub struct Output {
+    pub lightmap: Lightmap,
+    pub encoded: Encoded,
+    pub glb: Vec<u8>,
+    pub warnings: Vec<String>,
+    /// `dilate`, `encode`, `write`.
+    pub stages: Vec<StageTime>,
+}
+
+/// Dilates and encodes the bake and builds the output GLB bytes (and writes
+/// the debug maps and EXR if asked).
+pub fn output(scene: &Scene, p: &Prepared, passes: &BakePasses, s: &Settings) -> Result<Output> {
+    let mut t = Timer::new();
+    let receivers = &p.receivers;
+    if let (Some(dir), Some(stats)) = (&s.debug_dir, &passes.filter_stats) {
+        crate::encode::write_debug_maps(dir, receivers, stats, p.max_distance)?;
+    }
+    let fill = dilate::nearest_receiver(receivers.width, receivers.height, &receivers.texel);
+    let lightmap = encode::lightmap(receivers, &passes.bake, &fill)?;
+    t.lap("dilate");
+    let encoded = encode::encode(&lightmap)?;
+    if let Some(dir) = &s.exr_dir {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        encode::write_exr(&lightmap, &dir.join("lightmap.exr"))?;
+    }
+    t.lap("encode");
+    let options = OutputOptions {
+        record: BakeRecord {
+            method: s.method.name().to_string(),
+            rays: match s.method {
+                Method::Mc => s.rays,
+                Method::Filtered => s.filter.sparse_rays,
+            },
+            seed: s.seed,
+            max_distance: p.max_distance_world,
+            width: p.atlas.width,
+            height: p.atlas.height,
+        },
+        occlusion: s.occlusion,
+        existing_uv: match s.uv {
+            UvSource::Existing(set) => Some(set),
+            UvSource::Generate => None,
+        },
+    };
+    let mut warnings = scene.warnings.clone();
+    let glb = write::build_glb(
+        scene,
+        &p.geometry,
+        &p.atlas,
+        &encoded,
+        &options,
+        &mut warnings,
+    )?;
+    t.lap("write");
+    Ok(Output {
+        lightmap,
+        encoded,
+        glb,
+        warnings,
+        stages: t.stages,
+    })
+}
+
+/// Unwraps, rasterizes and builds the BVH: everything before the first ray.
+pub fn prepare(scene: &Scene, s: &Settings) -> Result<Prepared> {
     if s.method == Method::Mc && s.rays == 0 {
         return Err(Error::Option("--rays must be at least 1".into()));
     }
@@ -337,15 +513,31 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
     t.lap("rasterize");
     let tracer = Tracer::new(&geometry.occluders);
     t.lap("bvh");
+    Ok(Prepared {
+        geometry,
+        atlas,
+        receivers,
+        tracer,
+        max_distance_world,
+        max_distance: (max_distance_world / diagonal).min(f32::MAX as f64) as f32,
+        stages: t.stages,
+    })
+}
+
+/// Runs the method's passes (Monte Carlo, or sparse and filter passes) over
+/// prepared receivers.
+pub fn bake_prepared(p: &Prepared, s: &Settings) -> Result<BakePasses> {
+    let (receivers, tracer) = (&p.receivers, &p.tracer);
+    let mut t = Timer::new();
     let mc_settings = McSettings {
         rays: s.rays,
-        max_distance: (max_distance_world / diagonal).min(f32::MAX as f64) as f32,
+        max_distance: p.max_distance,
         seed: s.seed,
     };
     let pb = bar(s.progress, receivers.len() as u64, "baking");
     let (bake, filter_stats) = match s.method {
         Method::Mc => {
-            let b = mc::bake(&receivers, &tracer, &mc_settings, &|n| pb.inc(n));
+            let b = mc::bake(receivers, tracer, &mc_settings, &|n| pb.inc(n));
             t.lap("trace");
             (b, None)
         }
@@ -371,103 +563,18 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
                     fs.omega_v_max
                 )));
             }
-            let samples = filter::sparse_pass(&receivers, &tracer, &fs);
+            let samples = filter::sparse_pass(receivers, tracer, &fs);
             t.lap("sparse pass");
-            let (b, stats) =
-                filter::filter_pass(&receivers, &samples, &tracer, &fs, &|n| pb.inc(n))?;
+            let (b, stats) = filter::filter_pass(receivers, &samples, tracer, &fs, &|n| pb.inc(n))?;
             t.lap("filter pass");
             (b, Some(stats))
         }
     };
     pb.finish_and_clear();
-    if let (Some(dir), Some(stats)) = (&s.debug_dir, &filter_stats) {
-        crate::encode::write_debug_maps(dir, &receivers, stats, mc_settings.max_distance)?;
-    }
-    let fill = dilate::nearest_receiver(receivers.width, receivers.height, &receivers.texel);
-    let lightmap = encode::lightmap(&receivers, &bake, &fill)?;
-    t.lap("dilate");
-    let encoded = encode::encode(&lightmap)?;
-    if let Some(dir) = &s.exr_dir {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        encode::write_exr(&lightmap, &dir.join("lightmap.exr"))?;
-    }
-    t.lap("encode");
-    let options = OutputOptions {
-        record: BakeRecord {
-            method: s.method.name().to_string(),
-            rays: match s.method {
-                Method::Mc => s.rays,
-                Method::Filtered => s.filter.sparse_rays,
-            },
-            seed: s.seed,
-            max_distance: max_distance_world,
-            width: atlas.width,
-            height: atlas.height,
-        },
-        occlusion: s.occlusion,
-        existing_uv: match s.uv {
-            UvSource::Existing(set) => Some(set),
-            UvSource::Generate => None,
-        },
-    };
-    let mut warnings = scene.warnings.clone();
-    let glb = write::build_glb(scene, &geometry, &atlas, &encoded, &options, &mut warnings)?;
-    t.lap("write");
-    let trace_s = t.seconds("trace") + t.seconds("sparse pass") + t.seconds("filter pass");
-    let cells = (receivers.len() * crate::sample::CELL_COUNT) as f64;
-    let filter_report = filter_stats.as_ref().map(|f| FilterReport {
-        sparse_rays_per_texel: s.filter.sparse_rays,
-        gather_radius_texels: s.filter.gather_radius,
-        omega_v_max: s.filter.omega_v_max,
-        cell_rays: s.filter.cell_rays,
-        sparse_rays: f.sparse_rays,
-        second_pass_rays: f.brute_rays,
-        cells_filtered: f.cells_filtered as f64 / cells,
-        cells_brute_forced: f.cells_brute as f64 / cells,
-        cells_brute_contact: f.cells_contact as f64 / cells,
-        cells_open: f.cells_open as f64 / cells,
-        texels_open: f.receivers_open as f64 / receivers.len() as f64,
-        sparse_pass_seconds: t.seconds("sparse pass"),
-        filter_pass_seconds: t.seconds("filter pass"),
-        mean_neighbours: f.neighbours.iter().map(|&n| n as f64).sum::<f64>()
-            / receivers.len() as f64,
-    });
-    let report = Report {
-        input: String::new(),
-        method: s.method,
-        atlas_width: atlas.width,
-        atlas_height: atlas.height,
-        charts: atlas.charts,
-        utilization: atlas.utilization,
-        texels: receivers.len(),
-        baked_primitives: geometry.receivers.len(),
-        occluder_triangles: tracer.triangle_count(),
-        rays_per_texel: if s.method == Method::Mc { s.rays } else { 0 },
-        rays_cast: bake.rays,
-        rays_per_texel_total: bake.rays as f64 / receivers.len() as f64,
-        filter: filter_report,
-        rays_per_second: if trace_s > 0.0 {
-            bake.rays as f64 / trace_s
-        } else {
-            0.0
-        },
-        max_distance: max_distance_world,
-        seed: s.seed,
-        threads: rayon::current_num_threads(),
-        total_seconds: t.start.elapsed().as_secs_f64(),
-        stages: t.stages,
-        warnings,
-    };
-    Ok(Baked {
-        geometry,
-        atlas,
-        receivers,
+    Ok(BakePasses {
         bake,
         filter_stats,
-        lightmap,
-        encoded,
-        glb,
-        report,
+        stages: t.stages,
     })
 }
 
