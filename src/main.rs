@@ -189,6 +189,7 @@ fn run_report(cli: &ReportCli) -> anyhow::Result<()> {
         seed: cli.seed,
         max_distance: cli.max_distance,
         stability_rays: cli.stability_rays,
+        include_defaults: true,
         progress: !cli.quiet,
     };
     let start = std::time::Instant::now();

@@ -15,6 +15,8 @@ use std::sync::Once;
 /// Plot size in pixels.
 const SIZE: (u32, u32) = (900, 600);
 const FONT: &str = "sans-serif";
+/// Smallest time or error drawn (log axes cannot show 0).
+const MIN_PLOTTED: f64 = 1e-6;
 
 fn register_font() {
     static ONCE: Once = Once::new();
@@ -33,8 +35,15 @@ fn points(r: &SweepReport, m: Method) -> Vec<(f64, f64, String)> {
     let mut p: Vec<(f64, f64, String)> = r
         .runs
         .iter()
-        .filter(|x| x.method == m && x.end_to_end_seconds > 0.0 && x.ao.rmse > 0.0)
-        .map(|x| (x.end_to_end_seconds, x.ao.rmse, x.label.clone()))
+        .filter(|x| x.method == m && x.end_to_end_seconds.is_finite() && x.ao.rmse.is_finite())
+        // Log axes: an exact run (open scenes) sits on the floor.
+        .map(|x| {
+            (
+                x.end_to_end_seconds.max(MIN_PLOTTED),
+                x.ao.rmse.max(MIN_PLOTTED),
+                x.label.clone(),
+            )
+        })
         .collect();
     p.sort_by(|a, b| a.0.total_cmp(&b.0));
     p
@@ -74,7 +83,7 @@ where
         e1 = e1.max(p.1);
     }
     if let Some(e) = &r.equal_error {
-        e0 = e0.min(e.target_ao_rmse);
+        e0 = e0.min(e.target_ao_rmse.max(MIN_PLOTTED));
         e1 = e1.max(e.target_ao_rmse);
     }
     let (t0, t1, e0, e1) = (t0 / 1.3, t1 * 1.3, e0 / 1.3, e1 * 1.3);

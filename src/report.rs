@@ -174,6 +174,10 @@ pub struct ReportSettings {
     pub max_distance: Option<f64>,
     /// Monte Carlo rays of the scale-stability bakes; 0 skips them.
     pub stability_rays: u32,
+    /// Also run each method's default settings if `budgets` lacks them
+    /// (their error maps are drawn and 256-ray Monte Carlo sets the
+    /// equal-error target).
+    pub include_defaults: bool,
     pub progress: bool,
 }
 
@@ -186,6 +190,7 @@ impl Default for ReportSettings {
             seed: 0,
             max_distance: None,
             stability_rays: 64,
+            include_defaults: true,
             progress: true,
         }
     }
@@ -319,9 +324,10 @@ pub fn sweep(scene: &Scene, input: &str, load_seconds: f64, rs: &ReportSettings)
             filter: FilterOptions::default(),
         },
     ] {
-        if !budgets
-            .iter()
-            .any(|b| b.method == d.method && b.is_default())
+        if rs.include_defaults
+            && !budgets
+                .iter()
+                .any(|b| b.method == d.method && b.is_default())
         {
             budgets.push(d);
         }
