@@ -265,3 +265,23 @@ fn missing_external_image_is_a_clear_error() {
     );
     assert!(!out.exists());
 }
+
+#[cfg(unix)]
+#[test]
+fn outputs_get_the_mode_of_a_normal_file() {
+    use std::os::unix::fs::PermissionsExt;
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o7777;
+    let dir = tempfile::tempdir().unwrap();
+    // What a plain create gives here (0666 less the umask), not the
+    // temporary file's private 0600.
+    let plain = dir.path().join("plain");
+    std::fs::File::create(&plain).unwrap();
+    let out = dir.path().join("out.glb");
+    aobake::write::write_atomic(&out, b"first").unwrap();
+    assert_eq!(mode(&out), mode(&plain));
+    // Replacing a file keeps its mode.
+    std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o640)).unwrap();
+    aobake::write::write_atomic(&out, b"second").unwrap();
+    assert_eq!(mode(&out), 0o640);
+    assert_eq!(std::fs::read(&out).unwrap(), b"second");
+}
