@@ -49,4 +49,17 @@ impl Error {
             source,
         }
     }
+
+    /// Prefixes the message with the glTF object it concerns (e.g.
+    /// `meshes[1].primitives[0] POSITION`), for errors that carry one.
+    pub(crate) fn within(self, object: &str) -> Self {
+        match self {
+            Error::Invalid(m) if !m.starts_with(object) => Error::Invalid(format!("{object}: {m}")),
+            Error::Limit(m) if !m.starts_with(object) => Error::Limit(format!("{object}: {m}")),
+            Error::Unsupported(m) if !m.starts_with(object) => {
+                Error::Unsupported(format!("{object}: {m}"))
+            }
+            other => other,
+        }
+    }
 }

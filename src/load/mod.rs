@@ -442,7 +442,9 @@ fn decode_primitive(doc: &Document, mi: usize, pi: usize) -> Result<Option<Primi
     }
     let pos_acc = field_usize(&prim["attributes"], "POSITION", &what)?
         .ok_or_else(|| Error::Invalid(format!("{what} has no POSITION attribute")))?;
-    let positions: Vec<[f32; 3]> = accessor::read(doc, pos_acc)?.to_f32::<3>(&what)?;
+    let positions: Vec<[f32; 3]> = accessor::read(doc, pos_acc)
+        .map_err(|e| e.within(&format!("{what} POSITION")))?
+        .to_f32::<3>(&what)?;
     if let Some(v) = positions
         .iter()
         .position(|p| !p.iter().all(|c| c.is_finite()))
@@ -453,13 +455,17 @@ fn decode_primitive(doc: &Document, mi: usize, pi: usize) -> Result<Option<Primi
     }
     let normals = match field_usize(&prim["attributes"], "NORMAL", &what)? {
         Some(n) => {
-            let n = accessor::read(doc, n)?.to_f32::<3>(&what)?;
+            let n = accessor::read(doc, n)
+                .map_err(|e| e.within(&format!("{what} NORMAL")))?
+                .to_f32::<3>(&what)?;
             (n.len() == positions.len()).then_some(n)
         }
         None => None,
     };
     let indices: Vec<u32> = match field_usize(prim, "indices", &what)? {
-        Some(i) => accessor::read(doc, i)?.to_indices(&what)?,
+        Some(i) => accessor::read(doc, i)
+            .map_err(|e| e.within(&format!("{what} indices")))?
+            .to_indices(&what)?,
         None => (0..positions.len() as u32).collect(),
     };
     if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {

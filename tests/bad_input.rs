@@ -1,0 +1,354 @@
+//! Bad input: every case of the corpus gets exit code 1, one line on stderr
+//! naming the problem (and the glTF object where there is one), no output
+//! file, and an untouched input. The cases are built from a valid scene by
+//! one edit each; `tests/corpus/` holds the same files (regenerate with
+//! `AOBAKE_WRITE_CORPUS=1 cargo test --test bad_input`), which also seed
+//! the loader fuzzer (`fuzz/`).
+
+mod common;
+use common::*;
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+
+/// A valid scene: a floor and a wall, positions / normals / indices each
+/// in their own buffer view (accessors 0-2 floor, 3-5 wall).
+fn base() -> (Value, Vec<u8>) {
+    let floor = quad([0.0; 3], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true);
+    let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 0.5, 0.0], true);
+    split(&glb(&[floor, wall], plain_nodes(2)))
+}
+
+fn pack(json: &Value, bin: &[u8]) -> Vec<u8> {
+    aobake::write::glb_bytes(json, bin)
+}
+
+/// Byte offset of accessor `a`'s data in the BIN chunk.
+fn accessor_offset(json: &Value, a: usize) -> usize {
+    let v = json["accessors"][a]["bufferView"].as_u64().unwrap() as usize;
+    json["bufferViews"][v]["byteOffset"].as_u64().unwrap_or(0) as usize
+}
+
+fn with_json(edit: impl FnOnce(&mut Value)) -> Vec<u8> {
+    let (mut j, b) = base();
+    edit(&mut j);
+    pack(&j, &b)
+}
+
+fn with_bin(edit: impl FnOnce(&Value, &mut Vec<u8>)) -> Vec<u8> {
+    let (j, mut b) = base();
+    edit(&j, &mut b);
+    pack(&j, &b)
+}
+
+/// (file name, bytes, what stderr must say, extra CLI arguments).
+type Case = (&'static str, Vec<u8>, &'static str, Vec<&'static str>);
+
+fn corpus() -> Vec<Case> {
+    let valid = {
+        let (j, b) = base();
+        pack(&j, &b)
+    };
+    let le = |v: u32| v.to_le_bytes();
+    let mut cases: Vec<Case> = vec![
+        ("empty_file.glb", vec![], "not a glTF file", vec![]),
+        (
+            "truncated.glb",
+            valid[..valid.len() / 2].to_vec(),
+            "GLB truncated",
+            vec![],
+        ),
+        (
+            "wrong_magic.glb",
+            [b"glTX".as_slice(), &valid[4..]].concat(),
+            "not a glTF file",
+            vec![],
+        ),
+        (
+            "wrong_version.glb",
+            [&valid[..4], &le(1), &valid[8..]].concat(),
+            "GLB version 1 is not supported",
+            vec![],
+        ),
+        (
+            "chunk_past_end.glb",
+            [&valid[..12], &le(0x7fff_fff0), &valid[16..]].concat(),
+            "GLB chunk 0 declares",
+            vec![],
+        ),
+        (
+            "json_syntax_error.gltf",
+            b"{\"asset\": {\"version\": \"2.0\"},".to_vec(),
+            "JSON syntax error",
+            vec![],
+        ),
+        (
+            "accessor_past_buffer_view.glb",
+            with_json(|j| j["accessors"][0]["count"] = json!(400)),
+            "accessors[0]",
+            vec![],
+        ),
+        (
+            "index_past_vertex_count.glb",
+            with_bin(|j, b| {
+                let o = accessor_offset(j, 2) + 4;
+                b[o..o + 4].copy_from_slice(&le(99));
+            }),
+            "meshes[0].primitives[0]",
+            vec![],
+        ),
+        (
+            "byte_stride_too_small.glb",
+            with_json(|j| j["bufferViews"][0]["byteStride"] = json!(4)),
+            "byteStride",
+            vec![],
+        ),
+        (
+            "nan_position.glb",
+            with_bin(|j, b| {
+                let o = accessor_offset(j, 0);
+                b[o..o + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+            }),
+            "meshes[0].primitives[0]",
+            vec![],
+        ),
+        (
+            "inf_position.glb",
+            with_bin(|j, b| {
+                let o = accessor_offset(j, 3) + 8;
+                b[o..o + 4].copy_from_slice(&f32::INFINITY.to_le_bytes());
+            }),
+            "meshes[1].primitives[0]",
+            vec![],
+        ),
+        (
+            "empty_scene.glb",
+            with_json(|j| j["scenes"][0]["nodes"] = json!([])),
+            "nothing to bake",
+            vec![],
+        ),
+        (
+            "no_triangles.glb",
+            with_json(|j| {
+                for m in 0..2 {
+                    j["meshes"][m]["primitives"][0]["mode"] = json!(0);
+                }
+            }),
+            "no triangle primitive",
+            vec![],
+        ),
+        (
+            "only_degenerate_triangles.glb",
+            with_bin(|j, b| {
+                // Every vertex of both meshes at one point.
+                for a in [0, 3] {
+                    let o = accessor_offset(j, a);
+                    let first: Vec<u8> = b[o..o + 12].to_vec();
+                    for v in 1..4 {
+                        b[o + 12 * v..o + 12 * v + 12].copy_from_slice(&first);
+                    }
+                }
+            }),
+            "degenerate",
+            vec![],
+        ),
+        (
+            "huge_accessor_count.glb",
+            with_json(|j| j["accessors"][0]["count"] = json!(4_000_000_000u64)),
+            "accessors[0]",
+            vec![],
+        ),
+        (
+            "huge_buffer_length.glb",
+            with_json(|j| j["buffers"][0]["byteLength"] = json!(1u64 << 40)),
+            "buffers[0]",
+            vec![],
+        ),
+        (
+            "index_accessor_float.glb",
+            with_json(|j| j["accessors"][2]["componentType"] = json!(5126)),
+            "meshes[0].primitives[0]",
+            vec![],
+        ),
+        (
+            "missing_accessor.glb",
+            with_json(|j| j["meshes"][1]["primitives"][0]["attributes"]["POSITION"] = json!(42)),
+            "meshes[1].primitives[0]",
+            vec![],
+        ),
+        (
+            "node_cycle.glb",
+            with_json(|j| {
+                j["nodes"][0]["children"] = json!([1]);
+                j["nodes"][1]["children"] = json!([0]);
+            }),
+            "nodes[",
+            vec![],
+        ),
+        (
+            "uv_out_of_range.glb",
+            {
+                // TEXCOORD_1 with a coordinate of 1.5.
+                let (mut j, mut b) = base();
+                let uv: Vec<u8> = [[0.0f32, 0.0], [1.5, 0.0], [1.0, 1.0], [0.0, 1.0]]
+                    .iter()
+                    .flatten()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect();
+                let off = b.len();
+                b.extend_from_slice(&uv);
+                let views = j["bufferViews"].as_array_mut().unwrap();
+                views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": uv.len()}));
+                let view = views.len() - 1;
+                let accs = j["accessors"].as_array_mut().unwrap();
+                accs.push(
+                    json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC2"}),
+                );
+                let a = accs.len() - 1;
+                j["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(a);
+                j["meshes"][1]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(a);
+                j["buffers"][0]["byteLength"] = json!(b.len());
+                pack(&j, &b)
+            },
+            "TEXCOORD_1",
+            vec!["--uv", "existing", "--uv-set", "1"],
+        ),
+    ];
+    // Garbage after a valid GLB magic and version.
+    let mut garbage = b"glTF".to_vec();
+    garbage.extend_from_slice(&le(2));
+    garbage.extend_from_slice(&le(64));
+    garbage.extend((0..52u32).map(|i| (i * 37 % 251) as u8));
+    cases.push((
+        "garbage_chunks.glb",
+        garbage,
+        "invalid glTF container",
+        vec![],
+    ));
+    cases
+}
+
+fn run_cli(input: &Path, output: &Path, extra: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_aobake"))
+        .arg(input)
+        .arg(output)
+        .args(["--resolution", "64", "--rays", "4", "-q"])
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+fn assert_refused(input: &Path, output: &Path, extra: &[&str], expect: &str) {
+    let before = std::fs::read(input).unwrap();
+    let run = run_cli(input, output, extra);
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    let name = input.file_name().unwrap().to_string_lossy();
+    assert_eq!(run.status.code(), Some(1), "{name}: {stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{name}: {stderr}");
+    assert!(stderr.starts_with("aobake: error: "), "{name}: {stderr}");
+    assert!(
+        stderr.contains(expect),
+        "{name}: expected '{expect}' in: {stderr}"
+    );
+    assert!(!output.exists(), "{name}: output left behind");
+    assert_eq!(
+        std::fs::read(input).unwrap(),
+        before,
+        "{name}: input changed"
+    );
+    // Nothing else (no temporary file) left next to the output either.
+    let dir = output.parent().unwrap();
+    let leftovers: Vec<PathBuf> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().contains(".aobake-"))
+        .collect();
+    assert!(leftovers.is_empty(), "{name}: {leftovers:?}");
+}
+
+#[test]
+fn every_corpus_case_is_refused_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let write_corpus = std::env::var_os("AOBAKE_WRITE_CORPUS").is_some();
+    let corpus_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus");
+    let mut failures = Vec::new();
+    for (name, bytes, expect, extra) in corpus() {
+        let input = dir.path().join(name);
+        std::fs::write(&input, &bytes).unwrap();
+        if write_corpus {
+            std::fs::create_dir_all(&corpus_dir).unwrap();
+            std::fs::write(corpus_dir.join(name), &bytes).unwrap();
+        }
+        let out_dir = tempfile::tempdir().unwrap();
+        let out = out_dir.path().join("out.glb");
+        let result = std::panic::catch_unwind(|| assert_refused(&input, &out, &extra, expect));
+        if let Err(e) = result {
+            let why = e
+                .downcast_ref::<String>()
+                .cloned()
+                .unwrap_or_else(|| "panic".into());
+            failures.push(why);
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn checked_in_corpus_matches_the_generator() {
+    let corpus_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus");
+    for (name, bytes, _, _) in corpus() {
+        let path = corpus_dir.join(name);
+        let stored = std::fs::read(&path).unwrap_or_else(|e| {
+            panic!(
+                "{}: {e}; regenerate with AOBAKE_WRITE_CORPUS=1",
+                path.display()
+            )
+        });
+        assert_eq!(stored, bytes, "{name} differs from the generator");
+    }
+}
+
+#[test]
+fn missing_external_buffer_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("scene.gltf");
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": "missing.bin", "byteLength": 48}],
+    });
+    std::fs::write(&input, serde_json::to_vec(&doc).unwrap()).unwrap();
+    assert_refused(&input, &dir.path().join("out.glb"), &[], "missing.bin");
+}
+
+#[test]
+fn unwritable_output_leaves_nothing() {
+    let (j, b) = base();
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.glb");
+    std::fs::write(&input, pack(&j, &b)).unwrap();
+    // A directory that does not exist.
+    let missing = dir.path().join("no/such/dir/out.glb");
+    assert_refused(&input, &missing, &[], "no/such/dir");
+    // An output path that is a directory.
+    let as_dir = dir.path().join("taken");
+    std::fs::create_dir(&as_dir).unwrap();
+    let run = run_cli(&input, &as_dir, &[]);
+    assert_eq!(run.status.code(), Some(1));
+    assert!(as_dir.is_dir());
+}
+
+#[test]
+fn output_equal_to_input_is_refused_even_through_another_path() {
+    let (j, b) = base();
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.glb");
+    std::fs::write(&input, pack(&j, &b)).unwrap();
+    let before = std::fs::read(&input).unwrap();
+    let other = dir.path().join(".").join("sub/../in.glb");
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    let run = run_cli(&input, &other, &[]);
+    assert_eq!(run.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("is the input file"), "{stderr}");
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+}
