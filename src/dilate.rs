@@ -47,9 +47,36 @@ pub fn nearest_receiver(width: u32, height: u32, receiver_texels: &[u32]) -> Vec
     owner
 }
 
+/// [`nearest_receiver`] where receivers marked `inside` (inside geometry,
+/// see [`crate::validity`]) are filled like gutter texels, from the nearest
+/// valid receiver. If no receiver is valid, every receiver shows itself.
+pub fn fill_map(width: u32, height: u32, receiver_texels: &[u32], inside: &[bool]) -> Vec<u32> {
+    let valid: Vec<u32> = (0..receiver_texels.len() as u32)
+        .filter(|&r| !inside.get(r as usize).copied().unwrap_or(false))
+        .collect();
+    if valid.len() == receiver_texels.len() || valid.is_empty() {
+        return nearest_receiver(width, height, receiver_texels);
+    }
+    let texels: Vec<u32> = valid.iter().map(|&r| receiver_texels[r as usize]).collect();
+    nearest_receiver(width, height, &texels)
+        .into_iter()
+        .map(|k| if k == NONE { NONE } else { valid[k as usize] })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn inside_receivers_show_their_nearest_valid_one() {
+        // 5x1: receivers at x = 0, 1, 2, 3; r1 and r2 inside.
+        let o = fill_map(5, 1, &[0, 1, 2, 3], &[false, true, true, false]);
+        assert_eq!(o, vec![0, 0, 3, 3, 3]);
+        // All inside: each shows itself.
+        let o = fill_map(3, 1, &[0, 2], &[true, true]);
+        assert_eq!(o, vec![0, 0, 1]);
+    }
 
     #[test]
     fn fills_every_texel_from_the_nearest() {

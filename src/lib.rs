@@ -21,6 +21,7 @@ pub mod sample;
 pub mod sh;
 pub mod trace;
 pub mod unwrap;
+pub mod validity;
 pub mod write;
 
 pub use error::{Error, Result};

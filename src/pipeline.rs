@@ -20,6 +20,30 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Memory a bake may use (checked against [`estimated_bytes`] before the
+/// per-texel arrays are allocated): the 24 GiB build machines keep room for
+/// the loaded scene and the BVH.
+pub const MAX_BAKE_BYTES: u64 = 16 << 30;
+
+/// Per atlas texel, an upper bound of what a bake holds at once: receiver
+/// (texel, position, two normals, footprint: 44 B), results (AO and 9 SH:
+/// 40 B), the float lightmap with its coverage (41 B), the dilation map
+/// (4 B), BFS queue and encoded image rows (~24 B).
+const BYTES_PER_TEXEL: u64 = 160;
+
+/// Memory estimate of baking a `width` x `height` atlas with settings `s`
+/// (every texel counted as covered: the worst case).
+pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
+    let texels = width as u64 * height as u64;
+    let mut bytes = texels * BYTES_PER_TEXEL;
+    if s.method == Method::Filtered {
+        // Sparse samples (direction, distance, cell: 17 B each), the k-d
+        // tree's points and per-receiver filter statistics (~40 B).
+        bytes += texels * (s.filter.sparse_rays as u64 * 17 + 12 + 40);
+    }
+    bytes
+}
+
 /// Default max occluder distance as a fraction of the scene's bounding-box diagonal.
 pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
 
@@ -136,6 +160,9 @@ pub struct Report {
     pub charts: u32,
     pub utilization: f32,
     pub texels: usize,
+    /// Texels inside or behind geometry, filled from their nearest valid
+    /// texel ([`crate::validity`]).
+    pub texels_inside: usize,
     pub baked_primitives: usize,
     pub occluder_triangles: usize,
     /// Monte Carlo rays per texel (the `--rays` setting; 0 for filtered).
@@ -285,6 +312,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         receivers,
         tracer,
         max_distance_world,
+        inside,
         stages,
         ..
     } = prepared;
@@ -320,6 +348,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         charts: atlas.charts,
         utilization: atlas.utilization,
         texels: receivers.len(),
+        texels_inside: inside.iter().filter(|&&x| x).count(),
         baked_primitives: geometry.receivers.len(),
         occluder_triangles: tracer.triangle_count(),
         rays_per_texel: if s.method == Method::Mc { s.rays } else { 0 },
@@ -361,6 +390,9 @@ pub struct Prepared {
     pub max_distance_world: f64,
     /// The same in bake units.
     pub max_distance: f32,
+    /// Per receiver: inside or behind geometry ([`crate::validity`]); its
+    /// texel shows its nearest valid receiver instead.
+    pub inside: Vec<bool>,
     /// Wall times of the stages so far.
     pub stages: Vec<StageTime>,
 }
@@ -392,7 +424,12 @@ pub fn output(scene: &Scene, p: &Prepared, passes: &BakePasses, s: &Settings) ->
     if let (Some(dir), Some(stats)) = (&s.debug_dir, &passes.filter_stats) {
         crate::encode::write_debug_maps(dir, receivers, stats, p.max_distance)?;
     }
-    let fill = dilate::nearest_receiver(receivers.width, receivers.height, &receivers.texel);
+    let fill = dilate::fill_map(
+        receivers.width,
+        receivers.height,
+        &receivers.texel,
+        &p.inside,
+    );
     let lightmap = encode::lightmap(receivers, &passes.bake, &fill)?;
     t.lap("dilate");
     let encoded = encode::encode(&lightmap)?;
@@ -491,6 +528,16 @@ pub fn prepare(scene: &Scene, s: &Settings) -> Result<Prepared> {
         }
     };
     t.lap("unwrap");
+    let need = estimated_bytes(atlas.width, atlas.height, s);
+    if need > MAX_BAKE_BYTES {
+        return Err(Error::Limit(format!(
+            "a {}x{} atlas needs about {:.1} GiB of memory to bake, more than the {} GiB limit; lower --resolution or --texel-density",
+            atlas.width,
+            atlas.height,
+            need as f64 / (1u64 << 30) as f64,
+            MAX_BAKE_BYTES >> 30
+        )));
+    }
     let receivers = rasterize::rasterize(&geometry.receivers, &atlas);
     if let (UvSource::Existing(set), Some((a, b))) = (s.uv, receivers.first_overlap) {
         let name = |k: u32| {
@@ -511,15 +558,19 @@ pub fn prepare(scene: &Scene, s: &Settings) -> Result<Prepared> {
         ));
     }
     t.lap("rasterize");
-    let tracer = Tracer::new(&geometry.occluders);
+    let tracer = Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
     t.lap("bvh");
+    let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
+    let inside = crate::validity::inside_geometry(&receivers, &tracer, max_distance);
+    t.lap("validity");
     Ok(Prepared {
         geometry,
         atlas,
         receivers,
         tracer,
         max_distance_world,
-        max_distance: (max_distance_world / diagonal).min(f32::MAX as f64) as f32,
+        max_distance,
+        inside,
         stages: t.stages,
     })
 }

@@ -19,6 +19,8 @@ use std::time::Duration;
 pub struct Tracer {
     bvh: Option<CwBvh>,
     tris: Vec<RtTriangle>,
+    /// Per triangle in leaf order: single-sided (its back face is "inside").
+    single_sided: Vec<bool>,
 }
 
 /// Origin offset along the geometric normal, in bake units (scene diagonal
@@ -68,10 +70,18 @@ impl Tracer {
     /// Builds the BVH (`very_slow` preset: slower build, faster traversal,
     /// which pays off at millions of rays).
     pub fn new(occluders: &[[Vec3A; 3]]) -> Tracer {
+        Tracer::with_sides(occluders, &[])
+    }
+
+    /// [`Tracer::new`] that also knows which triangles are single-sided
+    /// (`single_sided[i]` for `occluders[i]`; missing entries are
+    /// double-sided), for [`Tracer::back_face_hit`].
+    pub fn with_sides(occluders: &[[Vec3A; 3]], single_sided: &[bool]) -> Tracer {
         if occluders.is_empty() {
             return Tracer {
                 bvh: None,
                 tris: Vec::new(),
+                single_sided: Vec::new(),
             };
         }
         let tris: Vec<Triangle> = occluders
@@ -93,9 +103,15 @@ impl Tracer {
             .iter()
             .map(|&i| RtTriangle::from(&tris[i as usize]))
             .collect();
+        let sides = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| single_sided.get(i as usize).copied().unwrap_or(false))
+            .collect();
         Tracer {
             bvh: Some(bvh),
             tris: rt,
+            single_sided: sides,
         }
     }
 
@@ -121,6 +137,22 @@ impl Tracer {
     #[inline]
     pub fn receiver_visible(&self, origin: Vec3, geo_normal: Vec3, dir: Vec3, t_max: f32) -> bool {
         dir.dot(geo_normal) > 0.0 && !self.occluded(origin, dir, t_max)
+    }
+
+    /// Whether the closest hit in (0, t_max] is the back face of a
+    /// single-sided triangle (`None`: no hit). Front faces are
+    /// counter-clockwise; obvhs stores `ng = (v0 - v1) x (v2 - v0)`, the
+    /// negated front normal, so a back face has `ng . dir < 0`.
+    #[inline]
+    pub fn back_face_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<bool> {
+        let bvh = self.bvh.as_ref()?;
+        let ray = shifted_ray(origin, dir, t_max);
+        let mut hit = RayHit::none();
+        if !bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r)) {
+            return None;
+        }
+        let id = hit.primitive_id as usize;
+        Some(self.single_sided[id] && Vec3::from(self.tris[id].ng).dot(dir) < 0.0)
     }
 
     /// Distance to the closest hit in (0, t_max], if any.

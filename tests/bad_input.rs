@@ -231,7 +231,12 @@ fn run_cli(input: &Path, output: &Path, extra: &[&str]) -> std::process::Output 
     std::process::Command::new(env!("CARGO_BIN_EXE_aobake"))
         .arg(input)
         .arg(output)
-        .args(["--resolution", "64", "--rays", "4", "-q"])
+        .args(["--rays", "4", "-q"])
+        .args(if extra.contains(&"--resolution") {
+            &[][..]
+        } else {
+            &["--resolution", "64"][..]
+        })
         .args(extra)
         .output()
         .unwrap()
@@ -351,4 +356,50 @@ fn output_equal_to_input_is_refused_even_through_another_path() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(stderr.contains("is the input file"), "{stderr}");
     assert_eq!(std::fs::read(&input).unwrap(), before);
+}
+
+#[test]
+fn memory_estimate_refuses_huge_atlases_before_allocating() {
+    // A valid TEXCOORD_1 on the floor only, baked into a 16000^2 page.
+    let floor = quad([0.0; 3], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true);
+    let (mut j, mut b) = split(&glb(&[floor], plain_nodes(1)));
+    let uv: Vec<u8> = [[0.0f32, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let off = b.len();
+    b.extend_from_slice(&uv);
+    j["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": 0, "byteOffset": off, "byteLength": uv.len()}));
+    let view = j["bufferViews"].as_array().unwrap().len() - 1;
+    j["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC2"}));
+    let a = j["accessors"].as_array().unwrap().len() - 1;
+    j["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(a);
+    j["buffers"][0]["byteLength"] = json!(b.len());
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.glb");
+    std::fs::write(&input, pack(&j, &b)).unwrap();
+    let start = std::time::Instant::now();
+    assert_refused(
+        &input,
+        &dir.path().join("out.glb"),
+        &["--uv", "existing", "--uv-set", "1", "--resolution", "16000"],
+        "GiB limit",
+    );
+    // Refused from the estimate, not after allocating 16000^2 texels.
+    assert!(start.elapsed().as_secs_f64() < 5.0);
+    // The same file at a sane size bakes.
+    let out = dir.path().join("ok.glb");
+    let run = run_cli(&input, &out, &["--uv", "existing", "--uv-set", "1"]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
 }

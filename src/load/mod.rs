@@ -42,6 +42,8 @@ pub struct PrimitiveGeometry {
     pub triangles: Vec<u32>,
     /// The primitive has morph targets (occludes in its base pose, not baked).
     pub morphed: bool,
+    /// Its material is `doubleSided` (back faces are real surfaces).
+    pub double_sided: bool,
 }
 
 /// A placement of a primitive in the scene.
@@ -98,8 +100,13 @@ pub struct ReceiverMesh {
 #[derive(Debug, Clone)]
 pub struct BakeGeometry {
     pub space: BakeSpace,
-    /// Every non-degenerate triangle of every instance (occluders).
+    /// Every non-degenerate triangle of every instance (occluders), wound
+    /// so that its front face is counter-clockwise in bake space (mirroring
+    /// placements are flipped back).
     pub occluders: Vec<[Vec3A; 3]>,
+    /// Per occluder: its material is single-sided, so a ray reaching its
+    /// back face comes from inside or behind geometry.
+    pub occluder_single_sided: Vec<bool>,
     pub receivers: Vec<ReceiverMesh>,
 }
 
@@ -357,6 +364,7 @@ impl Scene {
             diagonal,
         };
         let mut occluders = Vec::new();
+        let mut occluder_single_sided = Vec::new();
         let mut receivers = Vec::new();
         for (ii, inst) in self.instances.iter().enumerate() {
             let g = &self.geometries[inst.geometry];
@@ -372,10 +380,15 @@ impl Scene {
                         .to_array()
                 })
                 .collect();
+            let mirrored = DMat3::from_mat4(inst.transform).determinant() < 0.0;
             for t in g.triangles.chunks_exact(3) {
-                let v = [0, 1, 2].map(|k| Vec3A::from(positions[t[k] as usize]));
+                let mut v = [0, 1, 2].map(|k| Vec3A::from(positions[t[k] as usize]));
+                if mirrored {
+                    v.swap(1, 2);
+                }
                 if (v[1] - v[0]).cross(v[2] - v[0]).length_squared() > 0.0 {
                     occluders.push(v);
+                    occluder_single_sided.push(!g.double_sided);
                 }
             }
             if !inst.baked {
@@ -407,6 +420,7 @@ impl Scene {
         Ok(BakeGeometry {
             space,
             occluders,
+            occluder_single_sided,
             receivers,
         })
     }
@@ -479,6 +493,12 @@ fn decode_primitive(doc: &Document, mi: usize, pi: usize) -> Result<Option<Primi
         .get("targets")
         .and_then(Value::as_array)
         .is_some_and(|t| !t.is_empty());
+    let double_sided = prim
+        .get("material")
+        .and_then(Value::as_u64)
+        .and_then(|m| doc.json.pointer(&format!("/materials/{m}/doubleSided")))
+        .and_then(Value::as_bool)
+        .unwrap_or(false);
     Ok(Some(PrimitiveGeometry {
         mesh: mi,
         primitive: pi,
@@ -486,6 +506,7 @@ fn decode_primitive(doc: &Document, mi: usize, pi: usize) -> Result<Option<Primi
         normals,
         triangles,
         morphed,
+        double_sided,
     }))
 }
 
