@@ -110,3 +110,139 @@ fn sheet_facing_the_floor_occludes_and_nothing_is_inside() {
     // Centre of a 0.6 x 0.6 sheet at height 0.2, max distance 0.5: mostly covered.
     assert!(mean(&under) < 0.5, "{}", mean(&under));
 }
+
+/// A (n x n)-quad grid in the z = 0 plane over [-1, 1]^2: 2 n^2 triangles.
+fn grid(n: usize) -> MeshSpec {
+    let mut m = MeshSpec {
+        positions: Vec::with_capacity((n + 1) * (n + 1)),
+        normals: Some(Vec::with_capacity((n + 1) * (n + 1))),
+        indices: Vec::with_capacity(6 * n * n),
+    };
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, y) = (
+                i as f32 / n as f32 * 2.0 - 1.0,
+                j as f32 / n as f32 * 2.0 - 1.0,
+            );
+            m.positions.push([x, y, 0.0]);
+            m.normals.as_mut().unwrap().push([0.0, 0.0, 1.0]);
+        }
+    }
+    let at = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    for j in 0..n {
+        for i in 0..n {
+            m.indices.extend([
+                at(i, j),
+                at(i + 1, j),
+                at(i + 1, j + 1),
+                at(i, j),
+                at(i + 1, j + 1),
+                at(i, j + 1),
+            ]);
+        }
+    }
+    m
+}
+
+fn assert_sane(b: &aobake::pipeline::Baked) {
+    assert!(b.bake.ao.iter().all(|a| (0.0..=1.0).contains(a)));
+    assert!(b.bake.sh.iter().flatten().all(|c| c.is_finite()));
+    assert!(b.lightmap.ao.iter().all(|a| a.is_finite()));
+}
+
+#[test]
+fn one_triangle_bakes_open() {
+    let tri = MeshSpec {
+        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        normals: None,
+        indices: vec![0, 1, 2],
+    };
+    let b =
+        aobake::bake_scene(&scene(&glb(&[tri], plain_nodes(1))), &settings(32, 8, None)).unwrap();
+    assert!(b.receivers.len() > 50);
+    assert!(b.bake.ao.iter().all(|&a| a == 1.0));
+    assert_sane(&b);
+}
+
+#[test]
+fn coincident_duplicate_faces_do_not_occlude_each_other() {
+    // The same quad twice (a common export artefact): the origin offset
+    // lifts rays off both, so neither turns the other black.
+    let a = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    let b2 = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    let b = aobake::bake_scene(
+        &scene(&glb(&[a, b2], plain_nodes(2))),
+        &settings(64, 16, None),
+    )
+    .unwrap();
+    assert_eq!(b.report.texels_inside, 0);
+    assert!(
+        b.bake.ao.iter().all(|&a| a == 1.0),
+        "min AO {}",
+        b.bake.ao.iter().fold(1.0f32, |m, &a| m.min(a))
+    );
+}
+
+#[test]
+fn sliver_and_degenerate_triangles_bake_without_nan() {
+    // A fan of 200 slivers (1e-4 wide at the tip end) plus zero-area
+    // triangles (repeated index, collinear), under a parallel plane.
+    let mut m = MeshSpec {
+        positions: vec![[0.0, 0.0, 0.0]],
+        normals: None,
+        indices: vec![],
+    };
+    for k in 0..=200 {
+        let t = k as f32 / 200.0 * 0.02;
+        m.positions.push([1.0, t, 0.0]);
+    }
+    for k in 1..=200u32 {
+        m.indices.extend([0, k, k + 1]);
+    }
+    let base = m.positions.len() as u32;
+    m.positions
+        .extend([[0.0, -1.0, 0.0], [0.5, -1.0, 0.0], [1.0, -1.0, 0.0]]);
+    m.indices
+        .extend([base, base, base + 1, base, base + 1, base + 2]);
+    let roof = quad([0.5, 0.0, 0.3], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], true);
+    let b = aobake::bake_scene(
+        &scene(&glb(&[m, roof], plain_nodes(2))),
+        &settings(128, 16, Some(1.0)),
+    )
+    .unwrap();
+    assert_sane(&b);
+    // The slivers under the roof are occluded.
+    assert!(b.bake.ao.iter().any(|&a| a < 0.6));
+    // And the filtered method on the same scene.
+    let s = aobake::Settings {
+        method: aobake::Method::Filtered,
+        ..settings(128, 16, Some(1.0))
+    };
+    assert_sane(&aobake::bake_scene(&scene(&glb(&[grid(2)], plain_nodes(1))), &s).unwrap());
+}
+
+#[test]
+fn tiny_and_large_atlases() {
+    let g = glb(
+        &[quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true)],
+        plain_nodes(1),
+    );
+    for (res, rays) in [(16, 8), (2048, 1)] {
+        let b = aobake::bake_scene(&scene(&g), &settings(res, rays, None)).unwrap();
+        assert!(b.report.atlas_width <= res && b.report.atlas_height <= res);
+        assert!(b.report.atlas_width.max(b.report.atlas_height) > res / 2);
+        assert!(b.bake.ao.iter().all(|&a| a == 1.0));
+        assert_sane(&b);
+    }
+}
+
+#[test]
+fn one_million_triangles() {
+    // 708^2 quads: 1,002,528 triangles.
+    let g = glb(&[grid(708)], plain_nodes(1));
+    let sc = scene(&g);
+    assert!(sc.geometries[0].triangles.len() / 3 > 1_000_000);
+    let b = aobake::bake_scene(&sc, &settings(256, 1, None)).unwrap();
+    assert!(b.receivers.len() > 10_000);
+    assert!(b.bake.ao.iter().all(|&a| a == 1.0));
+}
