@@ -1,0 +1,44 @@
+//! Writes a PNG of which texels the validity pass marks inside geometry
+//! (white) over the baked AO (grey), for checking a scene by eye.
+//!
+//!     cargo run --release --example inside_map -- SCENE.glb OUT.png [--resolution 512]
+
+use aobake::pipeline::{self, Settings};
+use aobake::unwrap::AtlasSize;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let resolution: u32 = args
+        .iter()
+        .position(|a| a == "--resolution")
+        .and_then(|i| args.get(i + 1))
+        .map_or(512, |v| v.parse().unwrap());
+    let scene = aobake::load::load(std::path::Path::new(&args[0])).expect("load");
+    let s = Settings {
+        size: AtlasSize::Resolution(resolution),
+        rays: 16,
+        progress: false,
+        ..Default::default()
+    };
+    let p = pipeline::prepare(&scene, &s).expect("prepare");
+    let passes = pipeline::bake_prepared(&p, &s).expect("bake");
+    let r = &p.receivers;
+    let mut img = vec![0u8; (r.width * r.height * 3) as usize];
+    for i in 0..r.len() {
+        let t = r.texel[i] as usize * 3;
+        let px = if p.inside[i] {
+            [255, 0, 255]
+        } else {
+            let g = (passes.bake.ao[i] * 200.0) as u8;
+            [g, g, g]
+        };
+        img[t..t + 3].copy_from_slice(&px);
+    }
+    let png = aobake::encode::png(r.width, r.height, &img, image::ExtendedColorType::Rgb8).unwrap();
+    std::fs::write(&args[1], png).unwrap();
+    println!(
+        "{} of {} texels inside",
+        p.inside.iter().filter(|&&x| x).count(),
+        r.len()
+    );
+}
