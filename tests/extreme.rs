@@ -246,3 +246,70 @@ fn one_million_triangles() {
     assert!(b.receivers.len() > 10_000);
     assert!(b.bake.ao.iter().all(|&a| a == 1.0));
 }
+
+#[test]
+fn mirrored_box_on_a_floor_is_still_seen_from_outside() {
+    // The box placed by a node with a negative scale: its triangles wind
+    // clockwise in world space, so front faces must be flipped back, or the
+    // whole floor around it would see "back faces" and be filled.
+    let nodes = vec![
+        serde_json::json!({"mesh": 0}),
+        serde_json::json!({"mesh": 1, "scale": [-1.0, 1.0, 1.0]}),
+    ];
+    let g = glb(
+        &[floor(), closed_box([-0.2, -0.2, 0.0], [0.2, 0.2, 0.4])],
+        nodes,
+    );
+    let b = aobake::bake_scene(&scene(&g), &settings(128, 64, Some(0.5))).unwrap();
+    // Only the floor under the box is inside (0.4^2 of the 2^2 floor = 4%,
+    // plus the box's own faces, which see nothing behind them).
+    let inside = b.report.texels_inside as f64 / b.report.texels as f64;
+    assert!(inside > 0.01 && inside < 0.08, "{inside}");
+    let beside = floor_ao(&b, |p| {
+        let d = p.x.abs().max(p.y.abs());
+        d > 0.22 && d < 0.26
+    });
+    assert!(
+        mean(&beside) > 0.35 && mean(&beside) < 0.8,
+        "{}",
+        mean(&beside)
+    );
+}
+
+#[test]
+fn zero_area_uv_triangles_in_an_existing_set_cover_nothing() {
+    // TEXCOORD_1: the first triangle of the floor maps to one point, the
+    // second to half the page.
+    let f = floor();
+    let (mut j, mut bin) = split(&glb(&[f], plain_nodes(1)));
+    let uv: Vec<u8> = [[0.5f32, 0.5], [0.5, 0.5], [1.0, 1.0], [0.0, 1.0]]
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let off = bin.len();
+    bin.extend_from_slice(&uv);
+    j["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": uv.len()}));
+    let view = j["bufferViews"].as_array().unwrap().len() - 1;
+    j["accessors"].as_array_mut().unwrap().push(
+        serde_json::json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC2"}),
+    );
+    let a = j["accessors"].as_array().unwrap().len() - 1;
+    j["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = serde_json::json!(a);
+    j["buffers"][0]["byteLength"] = serde_json::json!(bin.len());
+    let g = aobake::write::glb_bytes(&j, &bin);
+    let s = aobake::Settings {
+        uv: aobake::UvSource::Existing(1),
+        ..settings(64, 8, None)
+    };
+    let b = aobake::bake_scene(&scene(&g), &s).unwrap();
+    // Only the second triangle (0.5, 0.5)-(1, 1)-(0, 1) covers texels:
+    // a quarter of the page, and every texel of it is open.
+    let covered = b.receivers.len() as f64 / (64.0 * 64.0);
+    assert!((covered - 0.25).abs() < 0.05, "{covered}");
+    assert!(b.bake.ao.iter().all(|&a| a == 1.0));
+    assert_sane(&b);
+}
