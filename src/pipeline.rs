@@ -44,6 +44,58 @@ pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
     bytes
 }
 
+/// Largest `--gather-radius` in texels: every receiver visits the
+/// neighbours within it, so the filter's cost grows with its square.
+pub const MAX_GATHER_RADIUS: f32 = 64.0;
+/// Largest `--sparse-rays` and `--cell-rays`.
+pub const MAX_FILTER_RAYS: u32 = 1024;
+
+fn filter_settings(s: &Settings, max_distance: f32) -> filter::FilterSettings {
+    filter::FilterSettings {
+        sparse_rays: s.filter.sparse_rays,
+        gather_radius: s.filter.gather_radius,
+        omega_v_max: s.filter.omega_v_max,
+        cell_rays: s.filter.cell_rays,
+        min_weight: s.filter.min_weight,
+        max_distance,
+        seed: s.seed,
+    }
+}
+
+fn check_filter_options(fs: &filter::FilterSettings) -> Result<()> {
+    if !(1..=MAX_FILTER_RAYS).contains(&fs.sparse_rays) {
+        return Err(Error::Option(format!(
+            "--sparse-rays {} is outside 1..={MAX_FILTER_RAYS}",
+            fs.sparse_rays
+        )));
+    }
+    if !(1..=MAX_FILTER_RAYS).contains(&fs.cell_rays) {
+        return Err(Error::Option(format!(
+            "--cell-rays {} is outside 1..={MAX_FILTER_RAYS}",
+            fs.cell_rays
+        )));
+    }
+    if !(0.0..=MAX_GATHER_RADIUS).contains(&fs.gather_radius) {
+        return Err(Error::Option(format!(
+            "--gather-radius {} is outside 0..={MAX_GATHER_RADIUS} texels",
+            fs.gather_radius
+        )));
+    }
+    if !(fs.omega_v_max > 0.0 && fs.omega_v_max.is_finite()) {
+        return Err(Error::Option(format!(
+            "--omega-v {} must be finite and > 0",
+            fs.omega_v_max
+        )));
+    }
+    if !(fs.min_weight >= 0.0 && fs.min_weight.is_finite()) {
+        return Err(Error::Option(format!(
+            "--min-weight {} must be finite and >= 0",
+            fs.min_weight
+        )));
+    }
+    Ok(())
+}
+
 /// Default max occluder distance as a fraction of the scene's bounding-box diagonal.
 pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
 
@@ -477,6 +529,10 @@ pub fn output(scene: &Scene, p: &Prepared, passes: &BakePasses, s: &Settings) ->
 
 /// Unwraps, rasterizes and builds the BVH: everything before the first ray.
 pub fn prepare(scene: &Scene, s: &Settings) -> Result<Prepared> {
+    if s.method == Method::Filtered {
+        // Before the unwrap, so a bad option fails at once.
+        check_filter_options(&filter_settings(s, 1.0))?;
+    }
     if s.method == Method::Mc && s.rays == 0 {
         return Err(Error::Option("--rays must be at least 1".into()));
     }
@@ -593,21 +649,8 @@ pub fn bake_prepared(p: &Prepared, s: &Settings) -> Result<BakePasses> {
             (b, None)
         }
         Method::Filtered => {
-            let fs = filter::FilterSettings {
-                sparse_rays: s.filter.sparse_rays.max(1),
-                gather_radius: s.filter.gather_radius,
-                omega_v_max: s.filter.omega_v_max,
-                cell_rays: s.filter.cell_rays.max(1),
-                min_weight: s.filter.min_weight.max(0.0),
-                max_distance: mc_settings.max_distance,
-                seed: s.seed,
-            };
-            if !(fs.gather_radius >= 0.0 && fs.gather_radius.is_finite()) {
-                return Err(Error::Option(format!(
-                    "--gather-radius {} must be finite and >= 0",
-                    fs.gather_radius
-                )));
-            }
+            let fs = filter_settings(s, mc_settings.max_distance);
+            check_filter_options(&fs)?;
             if fs.omega_v_max.is_nan() || fs.omega_v_max <= 0.0 {
                 return Err(Error::Option(format!(
                     "--omega-v {} must be > 0",

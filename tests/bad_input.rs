@@ -231,12 +231,19 @@ fn run_cli(input: &Path, output: &Path, extra: &[&str]) -> std::process::Output 
     std::process::Command::new(env!("CARGO_BIN_EXE_aobake"))
         .arg(input)
         .arg(output)
-        .args(["--rays", "4", "-q"])
-        .args(if extra.contains(&"--resolution") {
+        .arg("-q")
+        .args(if extra.contains(&"--rays") {
             &[][..]
         } else {
-            &["--resolution", "64"][..]
+            &["--rays", "4"][..]
         })
+        .args(
+            if extra.contains(&"--resolution") || extra.contains(&"--texel-density") {
+                &[][..]
+            } else {
+                &["--resolution", "64"][..]
+            },
+        )
         .args(extra)
         .output()
         .unwrap()
@@ -402,4 +409,41 @@ fn memory_estimate_refuses_huge_atlases_before_allocating() {
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
+}
+
+#[test]
+fn bad_options_are_refused_in_one_line() {
+    let (j, b) = base();
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.glb");
+    std::fs::write(&input, pack(&j, &b)).unwrap();
+    let out = dir.path().join("out.glb");
+    for (args, expect) in [
+        (vec!["--resolution", "8"], "--resolution 8 is outside"),
+        (vec!["--texel-density", "0"], "--texel-density 0"),
+        (vec!["--rays", "0"], "--rays must be at least 1"),
+        (vec!["--max-distance", "0"], "--max-distance 0"),
+        (
+            vec!["--method", "filtered", "--sparse-rays", "0"],
+            "--sparse-rays 0",
+        ),
+        (
+            vec!["--method", "filtered", "--cell-rays", "0"],
+            "--cell-rays 0",
+        ),
+        (
+            vec!["--method", "filtered", "--gather-radius", "1e30"],
+            "--gather-radius",
+        ),
+        (
+            vec!["--method", "filtered", "--omega-v", "inf"],
+            "--omega-v inf",
+        ),
+        (
+            vec!["--method", "filtered", "--min-weight", "nan"],
+            "--min-weight NaN",
+        ),
+    ] {
+        assert_refused(&input, &out, &args, expect);
+    }
 }
