@@ -213,6 +213,23 @@ fn corpus() -> Vec<Case> {
             vec!["--uv", "existing", "--uv-set", "1"],
         ),
     ];
+    // Found by the bake fuzzer: a material index with no materials array
+    // panicked in the writer.
+    cases.push((
+        "material_missing.glb",
+        with_json(|j| j["meshes"][0]["primitives"][0]["material"] = json!(0)),
+        "meshes[0].primitives[0].material 0 does not exist",
+        vec![],
+    ));
+    cases.push((
+        "material_not_an_object.glb",
+        with_json(|j| {
+            j["materials"] = json!([5]);
+            j["meshes"][1]["primitives"][0]["material"] = json!(0);
+        }),
+        "materials[0] is not an object",
+        vec![],
+    ));
     // Garbage after a valid GLB magic and version.
     let mut garbage = b"glTF".to_vec();
     garbage.extend_from_slice(&le(2));

@@ -493,12 +493,22 @@ fn decode_primitive(doc: &Document, mi: usize, pi: usize) -> Result<Option<Primi
         .get("targets")
         .and_then(Value::as_array)
         .is_some_and(|t| !t.is_empty());
-    let double_sided = prim
-        .get("material")
-        .and_then(Value::as_u64)
-        .and_then(|m| doc.json.pointer(&format!("/materials/{m}/doubleSided")))
-        .and_then(Value::as_bool)
-        .unwrap_or(false);
+    // The writer edits the material (occlusionTexture): it must exist.
+    let double_sided = match field_usize(prim, "material", &what)? {
+        None => false,
+        Some(m) => {
+            let material = array(&doc.json, "materials")
+                .get(m)
+                .ok_or_else(|| Error::Invalid(format!("{what}.material {m} does not exist")))?;
+            if !material.is_object() {
+                return Err(Error::Invalid(format!("materials[{m}] is not an object")));
+            }
+            material
+                .get("doubleSided")
+                .and_then(Value::as_bool)
+                .unwrap_or(false)
+        }
+    };
     Ok(Some(PrimitiveGeometry {
         mesh: mi,
         primitive: pi,
