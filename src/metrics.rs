@@ -71,6 +71,21 @@ pub fn sh_band_rmse(values: &[[f32; SH_COUNT]], reference: &[[f32; SH_COUNT]]) -
     })
 }
 
+fn positive(v: f64) -> bool {
+    v.is_finite() && v > 0.0
+}
+
+/// The points with both coordinates positive and finite (log axes), by x.
+fn positive_sorted(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut pts: Vec<(f64, f64)> = points
+        .iter()
+        .copied()
+        .filter(|&(a, b)| positive(a) && positive(b))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    pts
+}
+
 /// Where a decreasing cost/error curve first reaches `target` error:
 /// `points` are (cost, error) pairs in any order; the curve is their lower
 /// envelope in cost order (the best error any run at that cost or less
@@ -79,18 +94,11 @@ pub fn sh_band_rmse(values: &[[f32; SH_COUNT]], reference: &[[f32; SH_COUNT]]) -
 /// cheapest run is at or below the target, its cost is returned (an upper
 /// bound).
 pub fn cost_at_error(points: &[(f64, f64)], target: f64) -> Option<f64> {
-    let ok = |v: f64| v.is_finite() && v > 0.0;
-    if !ok(target) {
+    if !positive(target) {
         return None;
     }
-    let mut pts: Vec<(f64, f64)> = points
-        .iter()
-        .copied()
-        .filter(|&(c, e)| ok(c) && ok(e))
-        .collect();
-    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut prev: Option<(f64, f64)> = None;
-    for (c, e) in pts {
+    for (c, e) in positive_sorted(points) {
         let e = prev.map_or(e, |(_, pe)| e.min(pe));
         if e <= target {
             return Some(match prev {
@@ -111,13 +119,7 @@ pub fn cost_at_error(points: &[(f64, f64)], target: f64) -> Option<f64> {
 /// the two nearest points (`points` sorted or not; `None` outside their
 /// range or for non-positive input).
 pub fn loglog_at(points: &[(f64, f64)], x: f64) -> Option<f64> {
-    let ok = |v: f64| v.is_finite() && v > 0.0;
-    let mut pts: Vec<(f64, f64)> = points
-        .iter()
-        .copied()
-        .filter(|&(a, b)| ok(a) && ok(b))
-        .collect();
-    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let pts = positive_sorted(points);
     if let Some(&(_, y)) = pts.iter().find(|p| p.0 == x) {
         return Some(y);
     }

@@ -189,24 +189,8 @@ fn corpus() -> Vec<Case> {
             {
                 // TEXCOORD_1 with a coordinate of 1.5.
                 let (mut j, mut b) = base();
-                let uv: Vec<u8> = [[0.0f32, 0.0], [1.5, 0.0], [1.0, 1.0], [0.0, 1.0]]
-                    .iter()
-                    .flatten()
-                    .flat_map(|v| v.to_le_bytes())
-                    .collect();
-                let off = b.len();
-                b.extend_from_slice(&uv);
-                let views = j["bufferViews"].as_array_mut().unwrap();
-                views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": uv.len()}));
-                let view = views.len() - 1;
-                let accs = j["accessors"].as_array_mut().unwrap();
-                accs.push(
-                    json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC2"}),
-                );
-                let a = accs.len() - 1;
-                j["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(a);
-                j["meshes"][1]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(a);
-                j["buffers"][0]["byteLength"] = json!(b.len());
+                let uvs = [[0.0, 0.0], [1.5, 0.0], [1.0, 1.0], [0.0, 1.0]];
+                add_texcoord1(&mut j, &mut b, &uvs, &[0, 1]);
                 pack(&j, &b)
             },
             "TEXCOORD_1",
@@ -387,25 +371,8 @@ fn memory_estimate_refuses_huge_atlases_before_allocating() {
     // A valid TEXCOORD_1 on the floor only, baked into a 16000^2 page.
     let floor = quad([0.0; 3], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true);
     let (mut j, mut b) = split(&glb(&[floor], plain_nodes(1)));
-    let uv: Vec<u8> = [[0.0f32, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
-        .iter()
-        .flatten()
-        .flat_map(|v| v.to_le_bytes())
-        .collect();
-    let off = b.len();
-    b.extend_from_slice(&uv);
-    j["bufferViews"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"buffer": 0, "byteOffset": off, "byteLength": uv.len()}));
-    let view = j["bufferViews"].as_array().unwrap().len() - 1;
-    j["accessors"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC2"}));
-    let a = j["accessors"].as_array().unwrap().len() - 1;
-    j["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(a);
-    j["buffers"][0]["byteLength"] = json!(b.len());
+    let uvs = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    add_texcoord1(&mut j, &mut b, &uvs, &[0]);
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("in.glb");
     std::fs::write(&input, pack(&j, &b)).unwrap();

@@ -282,24 +282,8 @@ fn zero_area_uv_triangles_in_an_existing_set_cover_nothing() {
     // second to half the page.
     let f = floor();
     let (mut j, mut bin) = split(&glb(&[f], plain_nodes(1)));
-    let uv: Vec<u8> = [[0.5f32, 0.5], [0.5, 0.5], [1.0, 1.0], [0.0, 1.0]]
-        .iter()
-        .flatten()
-        .flat_map(|v| v.to_le_bytes())
-        .collect();
-    let off = bin.len();
-    bin.extend_from_slice(&uv);
-    j["bufferViews"]
-        .as_array_mut()
-        .unwrap()
-        .push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": uv.len()}));
-    let view = j["bufferViews"].as_array().unwrap().len() - 1;
-    j["accessors"].as_array_mut().unwrap().push(
-        serde_json::json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC2"}),
-    );
-    let a = j["accessors"].as_array().unwrap().len() - 1;
-    j["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = serde_json::json!(a);
-    j["buffers"][0]["byteLength"] = serde_json::json!(bin.len());
+    let uvs = [[0.5, 0.5], [0.5, 0.5], [1.0, 1.0], [0.0, 1.0]];
+    add_texcoord1(&mut j, &mut bin, &uvs, &[0]);
     let g = aobake::write::glb_bytes(&j, &bin);
     let s = aobake::Settings {
         uv: aobake::UvSource::Existing(1),

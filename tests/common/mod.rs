@@ -153,3 +153,23 @@ pub fn glb_on_threads(g: &[u8], s: &aobake::Settings, threads: usize) -> Vec<u8>
         .unwrap();
     pool.install(|| aobake::bake_scene(&scene(g), s).unwrap().glb)
 }
+
+/// Appends a float VEC2 accessor holding `uvs` to a split GLB and sets it as
+/// `TEXCOORD_1` of the first primitive of each mesh in `meshes`.
+pub fn add_texcoord1(json: &mut Value, bin: &mut Vec<u8>, uvs: &[[f32; 2]], meshes: &[usize]) {
+    let bytes: Vec<u8> = uvs.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    let off = bin.len();
+    bin.extend_from_slice(&bytes);
+    let views = json["bufferViews"].as_array_mut().unwrap();
+    views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()}));
+    let view = views.len() - 1;
+    let accessors = json["accessors"].as_array_mut().unwrap();
+    accessors.push(
+        json!({"bufferView": view, "componentType": 5126, "count": uvs.len(), "type": "VEC2"}),
+    );
+    let a = accessors.len() - 1;
+    for &m in meshes {
+        json["meshes"][m]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(a);
+    }
+    json["buffers"][0]["byteLength"] = json!(bin.len());
+}
