@@ -109,6 +109,10 @@ struct Cli {
     /// Write a JSON report (stage times, texels, rays/s) to this file.
     #[arg(long)]
     report: Option<PathBuf>,
+    /// Bake texels inside or behind single-sided geometry as they are,
+    /// instead of filling them from their nearest valid texel.
+    #[arg(long)]
+    no_inside_fill: bool,
     /// Worker threads [default: all cores].
     #[arg(long)]
     threads: Option<usize>,
@@ -250,6 +254,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         },
         exr_dir: cli.exr.clone(),
         progress: !cli.quiet,
+        fill_inside: !cli.no_inside_fill,
     };
     let report = pipeline::run(&cli.input, &cli.output, &settings)?;
     if !cli.quiet {

@@ -173,6 +173,9 @@ pub struct Settings {
     pub exr_dir: Option<PathBuf>,
     /// Show progress bars (only drawn when stderr is a terminal).
     pub progress: bool,
+    /// Fill texels inside or behind geometry from their nearest valid
+    /// texel ([`crate::validity`]); `false` bakes them as they are.
+    pub fill_inside: bool,
 }
 
 impl Default for Settings {
@@ -191,6 +194,7 @@ impl Default for Settings {
             occlusion: OcclusionMode::Keep,
             exr_dir: None,
             progress: true,
+            fill_inside: true,
         }
     }
 }
@@ -617,7 +621,11 @@ pub fn prepare(scene: &Scene, s: &Settings) -> Result<Prepared> {
     let tracer = Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
     t.lap("bvh");
     let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
-    let inside = crate::validity::inside_geometry(&receivers, &tracer, max_distance);
+    let inside = if s.fill_inside {
+        crate::validity::inside_geometry(&receivers, &tracer, max_distance)
+    } else {
+        vec![false; receivers.len()]
+    };
     t.lap("validity");
     Ok(Prepared {
         geometry,

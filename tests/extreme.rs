@@ -80,6 +80,15 @@ fn floor_under_a_box_resting_on_it_is_not_black() {
     // Far from the box the floor is open.
     let far = floor_ao(&b, |p| p.x.abs().max(p.y.abs()) > 0.85);
     assert!(mean(&far) > 0.95, "{}", mean(&far));
+    // --no-inside-fill: baked as they are, black under the box.
+    let s = aobake::Settings {
+        fill_inside: false,
+        ..settings(128, 64, Some(0.5))
+    };
+    let b = aobake::bake_scene(&scene(&g), &s).unwrap();
+    assert_eq!(b.report.texels_inside, 0);
+    let under = floor_ao(&b, |p| p.x.abs() < 0.15 && p.y.abs() < 0.15);
+    assert!(mean(&under) < 0.1, "{}", mean(&under));
 }
 
 #[test]
