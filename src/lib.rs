@@ -2,9 +2,11 @@
 //! directional occlusion into lightmaps and writes them back into glTF.
 //!
 //! The pipeline has one module per stage, in order:
-//! [`load`] -> [`unwrap`] -> [`rasterize`] -> [`trace`] -> [`mc`] (with
-//! [`sample`] and [`sh`]) -> [`dilate`] -> [`encode`] -> [`write`](mod@write);
-//! [`pipeline`] runs them. See the README for the output format.
+//! [`load`] -> [`unwrap`] -> [`rasterize`] -> [`trace`] -> [`validity`] ->
+//! [`mc`] or [`filter`] (with [`sample`] and [`sh`]) -> [`dilate`] ->
+//! [`encode`] -> [`write`](mod@write); [`pipeline`] runs them. [`report`]
+//! (with [`metrics`] and [`plot`]) measures error against run time. See the
+//! README for the output format.
 
 pub mod dilate;
 pub mod encode;
