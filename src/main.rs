@@ -162,7 +162,9 @@ struct ReportCli {
 fn main() -> ExitCode {
     let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
     let result = if args.get(1).is_some_and(|a| a == "report") {
-        run_report(&ReportCli::parse_from(&args[1..]))
+        // argv[0] of the subcommand names it in usage and errors.
+        let sub = std::iter::once("aobake report".into()).chain(args[2..].iter().cloned());
+        run_report(&ReportCli::parse_from(sub))
     } else {
         run(&Cli::parse_from(&args))
     };
