@@ -82,6 +82,21 @@ pub fn png(
     Ok(out)
 }
 
+/// An 8-bit grey PNG in the atlas layout: each receiver's texel shows
+/// `value(receiver)` (0..1 to black..white), uncovered texels are black.
+pub fn grey_map(receivers: &Receivers, value: impl Fn(usize) -> f32) -> Result<Vec<u8>> {
+    let mut img = vec![0u8; (receivers.width * receivers.height) as usize];
+    for (r, &t) in receivers.texel.iter().enumerate() {
+        img[t as usize] = to_u8(value(r));
+    }
+    png(
+        receivers.width,
+        receivers.height,
+        &img,
+        image::ExtendedColorType::L8,
+    )
+}
+
 #[inline]
 fn to_u8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0).round() as u8
@@ -182,7 +197,6 @@ pub fn write_debug_maps(
     max_distance: f32,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let (w, h) = (receivers.width, receivers.height);
     let max_neighbours = stats.neighbours.iter().copied().max().unwrap_or(1).max(1) as f32;
     type Map<'a> = (&'a str, Box<dyn Fn(usize) -> f32 + 'a>);
     let maps: [Map; 4] = [
@@ -201,11 +215,7 @@ pub fn write_debug_maps(
         ("sparse_ao.png", Box::new(|r| stats.sparse_ao[r])),
     ];
     for (name, value) in maps {
-        let mut img = vec![0u8; (w * h) as usize];
-        for (r, &t) in receivers.texel.iter().enumerate() {
-            img[t as usize] = to_u8(value(r));
-        }
-        let bytes = png(w, h, &img, image::ExtendedColorType::L8)?;
+        let bytes = grey_map(receivers, value)?;
         let path = dir.join(name);
         std::fs::write(&path, bytes).map_err(|e| Error::io(&path, e))?;
     }

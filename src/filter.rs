@@ -119,6 +119,14 @@ pub struct FilterStats {
     pub sparse_ao: Vec<f32>,
 }
 
+impl FilterStats {
+    /// A count of cells as a fraction of all hemisphere cells (64 per
+    /// receiver).
+    pub fn cell_share(&self, cells: u64) -> f64 {
+        cells as f64 / (self.brute_fraction.len() * CELL_COUNT).max(1) as f64
+    }
+}
+
 /// The sparse pass: K samples per receiver, receiver-major.
 #[derive(Clone, Debug, Default)]
 pub struct Samples {

@@ -78,12 +78,18 @@ pub struct ReceiverRays {
 impl ReceiverRays {
     /// The rays of receiver `r` for bake seed `seed`.
     pub fn new(receivers: &Receivers, r: usize, seed: u64) -> ReceiverRays {
+        ReceiverRays::with_stream(receivers, r, seed, 0)
+    }
+
+    /// The same from another of the receiver's sequences (`stream`), for
+    /// passes whose rays must not repeat the bake's.
+    pub fn with_stream(receivers: &Receivers, r: usize, seed: u64, stream: u64) -> ReceiverRays {
         let geo_normal = receivers.geo_normal[r];
         ReceiverRays {
             origin: offset_origin(receivers.position[r], geo_normal, receivers.footprint[r]),
             geo_normal,
             frame: Frame::from_normal(receivers.normal[r]),
-            seed: receiver_seed(seed, receivers.texel[r] as u64, 0),
+            seed: receiver_seed(seed, receivers.texel[r] as u64, stream),
         }
     }
 

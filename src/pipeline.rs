@@ -62,7 +62,7 @@ fn filter_settings(s: &Settings, max_distance: f32) -> filter::FilterSettings {
     }
 }
 
-fn check_filter_options(fs: &filter::FilterSettings) -> Result<()> {
+fn check_filter_options(fs: &FilterOptions) -> Result<()> {
     if !(1..=MAX_FILTER_RAYS).contains(&fs.sparse_rays) {
         return Err(Error::Option(format!(
             "--sparse-rays {} is outside 1..={MAX_FILTER_RAYS}",
@@ -119,7 +119,7 @@ impl Method {
 }
 
 /// Options of the filtered method (see [`crate::filter`]).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FilterOptions {
     pub sparse_rays: u32,
     /// Gather radius in texels.
@@ -378,7 +378,6 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
     t.stages.extend(pass_stages);
     t.stages.extend(output_stages);
     let trace_s = t.seconds("trace") + t.seconds("sparse pass") + t.seconds("filter pass");
-    let cells = (receivers.len() * crate::sample::CELL_COUNT) as f64;
     let filter_report = filter_stats.as_ref().map(|f| FilterReport {
         sparse_rays_per_texel: s.filter.sparse_rays,
         gather_radius_texels: s.filter.gather_radius,
@@ -386,10 +385,10 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         cell_rays: s.filter.cell_rays,
         sparse_rays: f.sparse_rays,
         second_pass_rays: f.brute_rays,
-        cells_filtered: f.cells_filtered as f64 / cells,
-        cells_brute_forced: f.cells_brute as f64 / cells,
-        cells_brute_contact: f.cells_contact as f64 / cells,
-        cells_open: f.cells_open as f64 / cells,
+        cells_filtered: f.cell_share(f.cells_filtered),
+        cells_brute_forced: f.cell_share(f.cells_brute),
+        cells_brute_contact: f.cell_share(f.cells_contact),
+        cells_open: f.cell_share(f.cells_open),
         texels_open: f.receivers_open as f64 / receivers.len() as f64,
         sparse_pass_seconds: t.seconds("sparse pass"),
         filter_pass_seconds: t.seconds("filter pass"),
@@ -435,6 +434,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         report,
     })
 }
+
 /// What every bake of one scene shares: geometry in bake space, the atlas,
 /// its receivers and the BVH (every stage before the first ray).
 pub struct Prepared {
@@ -535,7 +535,7 @@ pub fn output(scene: &Scene, p: &Prepared, passes: &BakePasses, s: &Settings) ->
 pub fn prepare(scene: &Scene, s: &Settings) -> Result<Prepared> {
     if s.method == Method::Filtered {
         // Before the unwrap, so a bad option fails at once.
-        check_filter_options(&filter_settings(s, 1.0))?;
+        check_filter_options(&s.filter)?;
     }
     if s.method == Method::Mc && s.rays == 0 {
         return Err(Error::Option("--rays must be at least 1".into()));
@@ -657,14 +657,8 @@ pub fn bake_prepared(p: &Prepared, s: &Settings) -> Result<BakePasses> {
             (b, None)
         }
         Method::Filtered => {
+            check_filter_options(&s.filter)?;
             let fs = filter_settings(s, mc_settings.max_distance);
-            check_filter_options(&fs)?;
-            if fs.omega_v_max.is_nan() || fs.omega_v_max <= 0.0 {
-                return Err(Error::Option(format!(
-                    "--omega-v {} must be > 0",
-                    fs.omega_v_max
-                )));
-            }
             let samples = filter::sparse_pass(receivers, tracer, &fs);
             t.lap("sparse pass");
             let (b, stats) = filter::filter_pass(receivers, &samples, tracer, &fs, &|n| pb.inc(n))?;

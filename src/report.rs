@@ -61,25 +61,9 @@ impl Budget {
     }
 
     fn is_default(&self) -> bool {
-        let d = FilterOptions::default();
-        let f = &self.filter;
         match self.method {
             Method::Mc => self.rays == TARGET_RAYS,
-            Method::Filtered => {
-                (
-                    f.sparse_rays,
-                    f.gather_radius,
-                    f.cell_rays,
-                    f.omega_v_max,
-                    f.min_weight,
-                ) == (
-                    d.sparse_rays,
-                    d.gather_radius,
-                    d.cell_rays,
-                    d.omega_v_max,
-                    d.min_weight,
-                )
-            }
+            Method::Filtered => self.filter == FilterOptions::default(),
         }
     }
 }
@@ -381,7 +365,6 @@ pub fn sweep(scene: &Scene, input: &str, load_seconds: f64, rs: &ReportSettings)
         let bake_seconds = t.elapsed().as_secs_f64();
         let ao = error_stats(&passes.bake.ao, ref_ao);
         let sh_flat: Vec<f32> = passes.bake.sh.iter().flatten().copied().collect();
-        let cells = (texels * crate::sample::CELL_COUNT).max(1) as f64;
         let fs = passes.filter_stats.as_ref();
         let default_settings = b.is_default();
         if default_settings && !default_ao.iter().any(|(l, _)| *l == label) {
@@ -402,9 +385,9 @@ pub fn sweep(scene: &Scene, input: &str, load_seconds: f64, rs: &ReportSettings)
             ao,
             sh_rmse_band: sh_band_rmse(&passes.bake.sh, ref_sh),
             sh_rmse: error_stats(&sh_flat, &ref_sh_flat).rmse,
-            cells_filtered: fs.map(|f| f.cells_filtered as f64 / cells),
-            cells_brute_forced: fs.map(|f| f.cells_brute as f64 / cells),
-            cells_brute_contact: fs.map(|f| f.cells_contact as f64 / cells),
+            cells_filtered: fs.map(|f| f.cell_share(f.cells_filtered)),
+            cells_brute_forced: fs.map(|f| f.cell_share(f.cells_brute)),
+            cells_brute_contact: fs.map(|f| f.cell_share(f.cells_contact)),
         });
         pb.inc(1);
     }
@@ -514,6 +497,8 @@ fn stability(
         let max_distance_world = prepared.max_distance_world * scale;
         let ss = Settings {
             max_distance: Some(max_distance_world),
+            // Raw AO is compared, the inside fill is not: skip its pass.
+            fill_inside: false,
             ..s.clone()
         };
         let p = pipeline::prepare(&scaled, &ss)?;
@@ -587,14 +572,10 @@ pub fn write_report(sweep: &Sweep, dir: &Path) -> Result<SweepReport> {
         files.push(name);
     }
     if let Some(bf) = &sweep.brute_fraction {
-        let mut img = vec![0u8; (w * h) as usize];
-        for (r, &t) in sweep.receivers.texel.iter().enumerate() {
-            img[t as usize] = (bf[r].clamp(0.0, 1.0) * 255.0).round() as u8;
-        }
         let name = "brute_force_fraction.png".to_string();
         write(
             &name,
-            &crate::encode::png(w, h, &img, image::ExtendedColorType::L8)?,
+            &crate::encode::grey_map(&sweep.receivers, |r| bf[r])?,
         )?;
         files.push(name);
     }

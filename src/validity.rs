@@ -14,9 +14,9 @@
 //! [`VALIDITY_PROBE`] a receiver that saw no back face stops, so texels in
 //! the open cost a few rays.
 
+use crate::mc::ReceiverRays;
 use crate::rasterize::Receivers;
-use crate::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};
-use crate::trace::{Tracer, offset_origin};
+use crate::trace::Tracer;
 use rayon::prelude::*;
 
 /// Rays per receiver, at most.
@@ -37,23 +37,18 @@ pub fn inside_geometry(receivers: &Receivers, tracer: &Tracer, max_distance: f32
 }
 
 fn receiver_inside(receivers: &Receivers, tracer: &Tracer, max_distance: f32, r: usize) -> bool {
-    let geo = receivers.geo_normal[r];
-    let origin = offset_origin(receivers.position[r], geo, receivers.footprint[r]);
-    let frame = Frame::from_normal(receivers.normal[r]);
-    let seed = receiver_seed(0x7a11d, receivers.texel[r] as u64, 3);
+    let rays = ReceiverRays::with_stream(receivers, r, 0x7a11d, 3);
     let (mut traced, mut back) = (0u32, 0u32);
     for i in 0..VALIDITY_RAYS {
         if i == VALIDITY_PROBE && back == 0 {
             return false;
         }
-        let d = frame
-            .to_world(cosine_hemisphere(sobol_2d(i, seed)))
-            .normalize();
-        if d.dot(geo) <= 0.0 {
+        let d = rays.direction(i);
+        if d.dot(rays.geo_normal) <= 0.0 {
             continue;
         }
         traced += 1;
-        back += (tracer.back_face_hit(origin, d, max_distance) == Some(true)) as u32;
+        back += (tracer.back_face_hit(rays.origin, d, max_distance) == Some(true)) as u32;
     }
     traced > 0 && back as f32 >= INSIDE_FRACTION * traced as f32
 }

@@ -49,6 +49,12 @@ fn floor_ao(b: &aobake::pipeline::Baked, pick: impl Fn(DVec3) -> bool) -> Vec<f3
         .collect()
 }
 
+/// Floor points in a ring 0.02-0.06 outside the 0.4 x 0.4 box footprint.
+fn beside_the_box(p: DVec3) -> bool {
+    let d = p.x.abs().max(p.y.abs());
+    d > 0.22 && d < 0.26
+}
+
 fn mean(v: &[f32]) -> f32 {
     v.iter().sum::<f32>() / v.len().max(1) as f32
 }
@@ -68,10 +74,7 @@ fn floor_under_a_box_resting_on_it_is_not_black() {
     assert!(mean(&under) > 0.3, "under the box: {}", mean(&under));
     assert!(under.iter().all(|&a| a > 0.2));
     // Just outside the box: the contact shadow, not black.
-    let beside = floor_ao(&b, |p| {
-        let d = p.x.abs().max(p.y.abs());
-        d > 0.22 && d < 0.26
-    });
+    let beside = floor_ao(&b, beside_the_box);
     assert!(
         mean(&beside) > 0.35 && mean(&beside) < 0.8,
         "{}",
@@ -274,10 +277,7 @@ fn mirrored_box_on_a_floor_is_still_seen_from_outside() {
     // plus the box's own faces, which see nothing behind them).
     let inside = b.report.texels_inside as f64 / b.report.texels as f64;
     assert!(inside > 0.01 && inside < 0.08, "{inside}");
-    let beside = floor_ao(&b, |p| {
-        let d = p.x.abs().max(p.y.abs());
-        d > 0.22 && d < 0.26
-    });
+    let beside = floor_ao(&b, beside_the_box);
     assert!(
         mean(&beside) > 0.35 && mean(&beside) < 0.8,
         "{}",
