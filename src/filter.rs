@@ -234,6 +234,21 @@ pub fn reproject(receiver: Vec3, o: Vec3, d: Vec3, target: Vec3) -> Option<(Vec3
     Some((e, (rel + d * u).length(), dist))
 }
 
+/// Squared tangent offset x^2 of a sample ray (origin at `rel` from the
+/// receiver, direction `d`) re-aimed along the effective direction `e`:
+/// where the ray crosses the plane through the receiver perpendicular to
+/// `e` ([`reproject`] with the target already known). `None` if the ray
+/// runs parallel to that plane.
+#[inline]
+pub fn tangent_offset_sq(rel: Vec3, d: Vec3, e: Vec3) -> Option<f32> {
+    let de = d.dot(e);
+    if de.abs() < 1e-6 {
+        return None;
+    }
+    let u = -rel.dot(e) / de;
+    Some((rel + d * u).length_squared())
+}
+
 /// How far sparse rays are traced: the max distance plus the widest gather
 /// reach, so an occluder within the max distance of a *receiver* is found
 /// by every neighbour whose rays it lends (the paper traces unbounded rays
@@ -296,6 +311,11 @@ pub fn sparse_pass(receivers: &Receivers, tracer: &Tracer, s: &FilterSettings) -
 /// Per-receiver scratch, reused across receivers of one worker.
 struct Scratch {
     neighbours: Vec<u32>,
+    /// Neighbours' hits in this receiver's hemisphere, in neighbour order,
+    /// reprojected once (line 1-14 pass) for the filter pass; `hit_start[n]`
+    /// is where neighbour n's hits begin.
+    hit_cache: Vec<CachedHit>,
+    hit_start: Vec<u32>,
     z_min: [f32; CELL_COUNT],
     z_max: [f32; CELL_COUNT],
     count: [u16; CELL_COUNT],
@@ -312,6 +332,8 @@ impl Scratch {
     fn new() -> Scratch {
         Scratch {
             neighbours: Vec::with_capacity(1024),
+            hit_cache: Vec::with_capacity(4096),
+            hit_start: Vec::with_capacity(1024),
             z_min: [0.0; CELL_COUNT],
             z_max: [0.0; CELL_COUNT],
             count: [0; CELL_COUNT],
@@ -324,6 +346,16 @@ impl Scratch {
             occ_sh: [[0.0; SH_COUNT]; CELL_COUNT],
         }
     }
+}
+
+/// A neighbour's hit seen from the receiver: its sample, the effective
+/// direction toward the hit point, that direction's cell and the distance.
+#[derive(Clone, Copy)]
+struct CachedHit {
+    sample: u32,
+    cell: u8,
+    e: Vec3,
+    dist: f32,
 }
 
 /// What one receiver's filtering produced.
@@ -458,8 +490,11 @@ fn filter_receiver(
     sc.z_max = [0.0; CELL_COUNT];
     sc.count = [0; CELL_COUNT];
     sc.hits = [0; CELL_COUNT];
+    sc.hit_cache.clear();
+    sc.hit_start.clear();
     let mut any_occluder = false;
     for &j in &sc.neighbours {
+        sc.hit_start.push(sc.hit_cache.len() as u32);
         let j = j as usize;
         let pj = receivers.position[j];
         let same_frame = receivers.normal[j] == n;
@@ -480,18 +515,30 @@ fn filter_receiver(
                 };
                 sc.count[c] = sc.count[c].saturating_add(1);
             } else {
+                // The hit point is the target of Figure 6: its direction
+                // from the receiver is the effective direction.
                 let v = pj + d * t - p;
                 let z = v.length();
-                if v.dot(n) > 0.0 && z <= d_max && z > 0.0 {
-                    let c = cell_of_fast(frame.to_local(v / z));
-                    sc.z_min[c] = sc.z_min[c].min(z);
-                    sc.hits[c] = sc.hits[c].saturating_add(1);
-                    sc.z_max[c] = sc.z_max[c].max(z);
-                    any_occluder = true;
+                if v.dot(n) > 0.0 && z > 0.0 && z.is_finite() {
+                    let e = v / z;
+                    let c = cell_of_fast(frame.to_local(e));
+                    sc.hit_cache.push(CachedHit {
+                        sample: i as u32,
+                        cell: c as u8,
+                        e,
+                        dist: z,
+                    });
+                    if z <= d_max {
+                        sc.z_min[c] = sc.z_min[c].min(z);
+                        sc.hits[c] = sc.hits[c].saturating_add(1);
+                        sc.z_max[c] = sc.z_max[c].max(z);
+                        any_occluder = true;
+                    }
                 }
             }
         }
     }
+    sc.hit_start.push(sc.hit_cache.len() as u32);
     let neighbours = sc.neighbours.len() as u32;
     // Early out: the neighbourhood's rays saw no occluder (and enough of
     // them looked: at least one per cell on average).
@@ -553,7 +600,7 @@ fn filter_receiver(
     sc.w = [0.0; CELL_COUNT];
     sc.occ = [0.0; CELL_COUNT];
     sc.occ_sh = [[0.0; SH_COUNT]; CELL_COUNT];
-    for &j in &sc.neighbours {
+    for (ni, &j) in sc.neighbours.iter().enumerate() {
         let j = j as usize;
         let pj = receivers.position[j];
         let rel = pj - p;
@@ -561,49 +608,68 @@ fn filter_receiver(
         if rel2 > reach2 {
             continue;
         }
+        // Hits: target, effective direction and cell come from the depth
+        // pass; only the tangent offset x is left (Figure 6).
+        let hits = sc.hit_start[ni] as usize..sc.hit_start[ni + 1] as usize;
+        for h in &sc.hit_cache[hits] {
+            let c = h.cell as usize;
+            if sc.brute[c] {
+                continue;
+            }
+            let d = samples.dir[h.sample as usize];
+            let Some(x2) = tangent_offset_sq(rel, d, h.e) else {
+                continue;
+            };
+            let w = weight_sq(x2, sc.radius[c]);
+            if w == 0.0 {
+                continue;
+            }
+            // Occluded: a hit within the max distance of this receiver, or
+            // a direction into the receiver's own surface.
+            sc.w[c] += w;
+            if h.dist <= d_max || h.e.dot(geo) <= 0.0 {
+                sc.occ[c] += w;
+                sh::accumulate(&mut sc.occ_sh[c], w, h.e);
+            }
+        }
+        // Misses: re-aimed through the mid-depth plane of their cell.
         let same_frame = receivers.normal[j] == n;
         for i in j * k..(j + 1) * k {
             let t = samples.t[i];
-            if t < 0.0 {
+            if t < 0.0 || t.is_finite() {
                 continue;
             }
             let d = samples.dir[i];
-            let (target, hit) = if t.is_finite() {
-                (pj + d * t, true)
-            } else {
-                let Some(c0) = sample_cell(samples, i, same_frame, &frame) else {
-                    continue;
-                };
-                let mid = sc.mid[c0];
-                if mid.is_infinite() {
-                    // Target at infinity: the effective direction is the
-                    // ray's own; it only adds weight (V = 1) to its cell.
-                    if sc.brute[c0] {
-                        continue;
-                    }
-                    let along = rel.dot(d);
-                    let w = weight_sq(rel2 - along * along, sc.radius[c0]);
-                    sc.w[c0] += w;
-                    if w > 0.0 && d.dot(geo) <= 0.0 {
-                        // Into the receiver's own surface: occluded.
-                        sc.occ[c0] += w;
-                        sh::accumulate(&mut sc.occ_sh[c0], w, d);
-                    }
-                    continue;
-                } else {
-                    let centre = frame.to_world(CELL_CENTRES[c0]);
-                    let dc = d.dot(centre);
-                    if dc <= 1e-6 {
-                        continue;
-                    }
-                    let along = (mid - rel.dot(centre)) / dc;
-                    if along <= 0.0 {
-                        continue;
-                    }
-                    (pj + d * along, false)
-                }
+            let Some(c0) = sample_cell(samples, i, same_frame, &frame) else {
+                continue;
             };
-            let Some((e, x, dist)) = reproject(p, pj, d, target) else {
+            let mid = sc.mid[c0];
+            if mid.is_infinite() {
+                // Target at infinity: the effective direction is the
+                // ray's own; it only adds weight (V = 1) to its cell.
+                if sc.brute[c0] {
+                    continue;
+                }
+                let along = rel.dot(d);
+                let w = weight_sq(rel2 - along * along, sc.radius[c0]);
+                sc.w[c0] += w;
+                if w > 0.0 && d.dot(geo) <= 0.0 {
+                    // Into the receiver's own surface: occluded.
+                    sc.occ[c0] += w;
+                    sh::accumulate(&mut sc.occ_sh[c0], w, d);
+                }
+                continue;
+            }
+            let centre = frame.to_world(CELL_CENTRES[c0]);
+            let dc = d.dot(centre);
+            if dc <= 1e-6 {
+                continue;
+            }
+            let along = (mid - rel.dot(centre)) / dc;
+            if along <= 0.0 {
+                continue;
+            }
+            let Some((e, x, _)) = reproject(p, pj, d, pj + d * along) else {
                 continue;
             };
             let le = frame.to_local(e);
@@ -618,11 +684,8 @@ fn filter_receiver(
             if w == 0.0 {
                 continue;
             }
-            // Occluded: a hit within the max distance of this receiver, or
-            // a direction into the receiver's own surface.
-            let occluded = (hit && dist <= d_max) || e.dot(geo) <= 0.0;
             sc.w[c] += w;
-            if occluded {
+            if e.dot(geo) <= 0.0 {
                 sc.occ[c] += w;
                 sh::accumulate(&mut sc.occ_sh[c], w, e);
             }
@@ -758,5 +821,26 @@ mod tests {
         // Degenerate target (the receiver itself) and parallel rays.
         assert!(reproject(Vec3::ZERO, Vec3::X, Vec3::Z, Vec3::ZERO).is_none());
         assert!(reproject(Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.0, 0.0, 1.0)).is_none());
+    }
+
+    #[test]
+    fn tangent_offset_matches_reprojection() {
+        // Figure 6's example: x = sqrt 2.
+        let e = Vec3::new(1.0, 0.0, 1.0).normalize();
+        let x2 = tangent_offset_sq(Vec3::X, Vec3::Z, e).unwrap();
+        assert!((x2 - 2.0).abs() < 1e-5);
+        // Against reproject for skewed rays and targets.
+        let receiver = Vec3::new(0.3, -0.2, 0.1);
+        for (o, d, target) in [
+            (Vec3::new(0.5, 0.1, 0.1), Vec3::new(0.2, 0.3, 0.9), Vec3::new(0.4, 0.7, 1.3)),
+            (Vec3::new(-0.1, -0.4, 0.12), Vec3::new(-0.6, 0.1, 0.5), Vec3::new(-1.0, 0.0, 0.9)),
+        ] {
+            let d = d.normalize();
+            let (e, x, _) = reproject(receiver, o, d, target).unwrap();
+            let x2 = tangent_offset_sq(o - receiver, d, e).unwrap();
+            assert!((x2.sqrt() - x).abs() < 1e-5, "{x2} {x}");
+        }
+        // Parallel to the plane: no offset.
+        assert!(tangent_offset_sq(Vec3::X, Vec3::X, Vec3::Z).is_none());
     }
 }
