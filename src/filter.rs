@@ -832,8 +832,16 @@ mod tests {
         // Against reproject for skewed rays and targets.
         let receiver = Vec3::new(0.3, -0.2, 0.1);
         for (o, d, target) in [
-            (Vec3::new(0.5, 0.1, 0.1), Vec3::new(0.2, 0.3, 0.9), Vec3::new(0.4, 0.7, 1.3)),
-            (Vec3::new(-0.1, -0.4, 0.12), Vec3::new(-0.6, 0.1, 0.5), Vec3::new(-1.0, 0.0, 0.9)),
+            (
+                Vec3::new(0.5, 0.1, 0.1),
+                Vec3::new(0.2, 0.3, 0.9),
+                Vec3::new(0.4, 0.7, 1.3),
+            ),
+            (
+                Vec3::new(-0.1, -0.4, 0.12),
+                Vec3::new(-0.6, 0.1, 0.5),
+                Vec3::new(-1.0, 0.0, 0.9),
+            ),
         ] {
             let d = d.normalize();
             let (e, x, _) = reproject(receiver, o, d, target).unwrap();
