@@ -37,9 +37,9 @@ pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
     let texels = width as u64 * height as u64;
     let mut bytes = texels * BYTES_PER_TEXEL;
     if s.method == Method::Filtered {
-        // Sparse samples (direction, distance, cell: 17 B each), the k-d
-        // tree's points and per-receiver filter statistics (~40 B).
-        bytes += texels * (s.filter.sparse_rays as u64 * 17 + 12 + 40);
+        // Sparse samples (direction, distance, cell, hit normal: 29 B each),
+        // the k-d tree's points and per-receiver filter statistics (~40 B).
+        bytes += texels * (s.filter.sparse_rays as u64 * 29 + 12 + 40);
     }
     bytes
 }

@@ -155,6 +155,20 @@ impl Tracer {
         Some(self.single_sided[id] && Vec3::from(self.tris[id].ng).dot(dir) < 0.0)
     }
 
+    /// Distance to the closest hit in (0, t_max] and the unit geometric
+    /// normal there (either side), if any.
+    #[inline]
+    pub fn closest_hit_normal(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
+        let bvh = self.bvh.as_ref()?;
+        let ray = shifted_ray(origin, dir, t_max);
+        let mut hit = RayHit::none();
+        if !bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r)) {
+            return None;
+        }
+        let ng = Vec3::from(self.tris[hit.primitive_id as usize].ng);
+        Some((hit.t - BOX_EPSILON_SHIFT, ng.normalize_or_zero()))
+    }
+
     /// Distance to the closest hit in (0, t_max], if any.
     #[inline]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<f32> {
