@@ -215,6 +215,18 @@ fn main() {
                 100.0 * f.cells_brute_contact
             )),
         );
+        if args.iter().any(|a| a == "--breakdown") {
+            // What the texture shows: texels inside geometry hold their
+            // nearest valid texel's value in both bakes.
+            let shown = |l: &aobake::encode::Lightmap| -> Vec<f32> {
+                b.receivers.texel.iter().map(|&t| l.ao[t as usize]).collect()
+            };
+            let tex = error_stats(&shown(&b.lightmap), &shown(&reference.lightmap));
+            println!(
+                "  texture (after the inside fill, {} texels inside): AO RMSE {:.4}, bias {:+.4}",
+                b.report.texels_inside, tex.rmse, tex.bias
+            );
+        }
         if args.iter().any(|a| a == "--breakdown")
             && let Some(fs) = &b.filter_stats
         {
