@@ -219,7 +219,11 @@ fn main() {
             // What the texture shows: texels inside geometry hold their
             // nearest valid texel's value in both bakes.
             let shown = |l: &aobake::encode::Lightmap| -> Vec<f32> {
-                b.receivers.texel.iter().map(|&t| l.ao[t as usize]).collect()
+                b.receivers
+                    .texel
+                    .iter()
+                    .map(|&t| l.ao[t as usize])
+                    .collect()
             };
             let tex = error_stats(&shown(&b.lightmap), &shown(&reference.lightmap));
             println!(
