@@ -9,11 +9,14 @@
 //!    entry keeps the direction and hit distance (or a miss).
 //! 2. Per receiver (Algorithm 1): gather world-space neighbours with a k-d
 //!    tree inside `gather_radius` texel footprints, keep those that can lend
-//!    rays (the *leak rule*: shading and geometric normals both within ~25
-//!    degrees and the neighbour near the receiver's geometric tangent plane,
-//!    so the far side of a thin wall, a facing surface, or the other face of
-//!    a two-faced sheet whose shading normals agree never contributes). Hemisphere *cells* are the 8x8
-//!    equal-projected-area cells of the concentric map. From neighbours'
+//!    rays (the *leak rule*, [`lends_rays`]: shading and geometric normals
+//!    both within ~25 degrees and the neighbour near the receiver's
+//!    geometric tangent plane, on it when the planes are parallel, so the
+//!    far side of a thin wall, a facing surface, the other face of a
+//!    two-faced sheet whose shading normals agree, or a second sheet just
+//!    in front of a flat surface never contributes). Hemisphere *cells* are
+//!    the 8x8 equal-projected-area cells of the concentric map. From
+//!    neighbours'
 //!    occluded hits in the receiver's hemisphere: per-cell `z_min`/`z_max`,
 //!    the spatial radius of Eq. 8, which for shading diameter d and
 //!    Omega_pix = 0.5/d reduces to z_min z_max / (Omega_v (z_max - z_min)),
@@ -163,6 +166,36 @@ const NORMAL_AGREEMENT: f32 = 0.906;
 /// Largest tangent-plane distance of a neighbour, as a fraction of its
 /// distance (plus one footprint): keeps neighbours on the same sheet.
 const TANGENT_SLOPE: f32 = 0.25;
+/// Geometric normals this close (cos 0.5 degrees) are parallel planes.
+const PARALLEL_AGREEMENT: f32 = 0.99996;
+/// Largest offset along the normal, in footprints, of a neighbour on a
+/// parallel plane: anything farther is another sheet.
+const SHEET_OFFSET: f32 = 0.01;
+
+/// The leak rule: whether a neighbour at `rel` from the receiver (shading
+/// and geometric normals `n`, `geo`; the neighbour's `n_j`, `geo_j`) may
+/// lend its rays. Both normals within 25 degrees, and the neighbour near
+/// the receiver's geometric tangent plane: within a slope of 0.25 plus a
+/// footprint on curved surfaces, and on the plane itself (0.01 footprint,
+/// plus the 0.5-degree tilt) when the planes are parallel, so a second
+/// sheet in front of or behind a flat surface (a light quad under a
+/// ceiling, a decal, a coplanar duplicate pushed out) never lends rays
+/// that its own surface does not see.
+#[inline]
+pub fn lends_rays(rel: Vec3, n: Vec3, geo: Vec3, n_j: Vec3, geo_j: Vec3, footprint: f32) -> bool {
+    let agree = geo_j.dot(geo);
+    if n_j.dot(n) < NORMAL_AGREEMENT || agree < NORMAL_AGREEMENT {
+        return false;
+    }
+    let offset = rel.dot(geo).abs();
+    let dist = rel.length();
+    if agree >= PARALLEL_AGREEMENT {
+        offset <= SHEET_OFFSET * footprint + 0.01 * dist + 1e-6
+    } else {
+        offset <= TANGENT_SLOPE * dist + footprint
+    }
+}
+
 /// Fewest unoccluded samples a cell without hits must receive to be trusted
 /// open: a cell occluded with probability p shows no hit among N samples with
 /// probability (1-p)^N, a bright bias of at most ~1/(e (N+1)) per cell.
@@ -544,10 +577,14 @@ fn filter_receiver(
         .visit(|it| {
             let j = it.item as usize;
             let rel = receivers.position[j] - p;
-            if receivers.normal[j].dot(n) >= NORMAL_AGREEMENT
-                && receivers.geo_normal[j].dot(geo) >= NORMAL_AGREEMENT
-                && rel.dot(geo).abs() <= TANGENT_SLOPE * rel.length() + footprint
-            {
+            if lends_rays(
+                rel,
+                n,
+                geo,
+                receivers.normal[j],
+                receivers.geo_normal[j],
+                footprint,
+            ) {
                 sc.neighbours.push(j as u32);
             }
         });
@@ -961,6 +998,29 @@ mod tests {
             reprojection_jacobian(f32::NAN, 0.5, 0.7, 0.7, 2.0, 2.0),
             0.0
         );
+    }
+
+    #[test]
+    fn leak_rule() {
+        let (n, f) = (Vec3::Z, 0.01f32);
+        let lends = |rel: Vec3, nj: Vec3| lends_rays(rel, n, n, nj, nj, f);
+        // Same plane, any distance: lends.
+        assert!(lends(Vec3::new(0.04, 0.0, 0.0), Vec3::Z));
+        // A parallel sheet 0.3 footprints in front (a light quad under a
+        // ceiling) or behind: does not.
+        assert!(!lends(Vec3::new(0.02, 0.0, 0.003), Vec3::Z));
+        assert!(!lends(Vec3::new(0.02, 0.0, -0.003), Vec3::Z));
+        // Facing the other way, or 40 degrees off: does not.
+        assert!(!lends(Vec3::new(0.02, 0.0, 0.0), -Vec3::Z));
+        let tilted = Vec3::new(40f32.to_radians().sin(), 0.0, 40f32.to_radians().cos());
+        assert!(!lends(Vec3::new(0.02, 0.0, 0.0), tilted));
+        // A curved surface (10 degrees off) rising along the slope: lends;
+        // far above the tangent plane: does not.
+        let bent = Vec3::new(10f32.to_radians().sin(), 0.0, 10f32.to_radians().cos());
+        assert!(lends(Vec3::new(0.04, 0.0, 0.004), bent));
+        assert!(!lends(Vec3::new(0.04, 0.0, 0.03), bent));
+        // The other face of a thin wall (opposite normals): does not.
+        assert!(!lends_rays(Vec3::new(0.0, 0.0, -0.002), n, n, -n, -n, f));
     }
 
     #[test]
