@@ -452,6 +452,13 @@ struct ReceiverResult {
     neighbours: u32,
 }
 
+/// The k-d tree over receiver positions that the neighbour gather queries.
+fn receiver_tree(receivers: &Receivers) -> Result<ImmutableKdTree<f32, 3>> {
+    let points: Vec<[f32; 3]> = receivers.position.iter().map(|p| p.to_array()).collect();
+    ImmutableKdTree::<f32, 3>::new_from_slice(&points)
+        .map_err(|e| Error::Limit(format!("cannot build the receivers' k-d tree: {e}")))
+}
+
 /// Filters every receiver from the sparse samples (Algorithm 1), casting
 /// brute-force rays for the cells it marks.
 pub fn filter_pass(
@@ -461,9 +468,7 @@ pub fn filter_pass(
     s: &FilterSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Bake, FilterStats)> {
-    let points: Vec<[f32; 3]> = receivers.position.iter().map(|p| p.to_array()).collect();
-    let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&points)
-        .map_err(|e| Error::Limit(format!("cannot build the receivers' k-d tree: {e}")))?;
+    let tree = receiver_tree(receivers)?;
     let n = receivers.len();
     let results: Vec<ReceiverResult> = (0..n)
         .into_par_iter()
@@ -530,8 +535,7 @@ pub fn cell_estimates(
     s: &FilterSettings,
     r: usize,
 ) -> Vec<(f32, f32, bool)> {
-    let points: Vec<[f32; 3]> = receivers.position.iter().map(|p| p.to_array()).collect();
-    let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&points).unwrap();
+    let tree = receiver_tree(receivers).expect("k-d tree");
     let mut sc = Scratch::new();
     filter_receiver(receivers, samples, &tree, tracer, s, r, &mut sc);
     (0..CELL_COUNT)
@@ -747,7 +751,7 @@ fn filter_receiver(
             }
         }
         // Misses: re-aimed through the mid-depth plane of their cell.
-        let same_frame = receivers.normal[j] == n;
+        let same_frame = nj == n;
         for i in j * k..(j + 1) * k {
             let t = samples.t[i];
             if t < 0.0 || t.is_finite() {

@@ -139,19 +139,24 @@ impl Tracer {
         dir.dot(geo_normal) > 0.0 && !self.occluded(origin, dir, t_max)
     }
 
+    /// The closest hit in (0, t_max]: its distance from `origin` and the
+    /// triangle's index. The one traversal the closest-hit queries share.
+    #[inline]
+    fn closest(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, usize)> {
+        let bvh = self.bvh.as_ref()?;
+        let ray = shifted_ray(origin, dir, t_max);
+        let mut hit = RayHit::none();
+        bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
+            .then_some((hit.t - BOX_EPSILON_SHIFT, hit.primitive_id as usize))
+    }
+
     /// Whether the closest hit in (0, t_max] is the back face of a
     /// single-sided triangle (`None`: no hit). Front faces are
     /// counter-clockwise; obvhs stores `ng = (v0 - v1) x (v2 - v0)`, the
     /// negated front normal, so a back face has `ng . dir < 0`.
     #[inline]
     pub fn back_face_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<bool> {
-        let bvh = self.bvh.as_ref()?;
-        let ray = shifted_ray(origin, dir, t_max);
-        let mut hit = RayHit::none();
-        if !bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r)) {
-            return None;
-        }
-        let id = hit.primitive_id as usize;
+        let (_, id) = self.closest(origin, dir, t_max)?;
         Some(self.single_sided[id] && Vec3::from(self.tris[id].ng).dot(dir) < 0.0)
     }
 
@@ -159,24 +164,14 @@ impl Tracer {
     /// normal there (either side), if any.
     #[inline]
     pub fn closest_hit_normal(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
-        let bvh = self.bvh.as_ref()?;
-        let ray = shifted_ray(origin, dir, t_max);
-        let mut hit = RayHit::none();
-        if !bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r)) {
-            return None;
-        }
-        let ng = Vec3::from(self.tris[hit.primitive_id as usize].ng);
-        Some((hit.t - BOX_EPSILON_SHIFT, ng.normalize_or_zero()))
+        let (t, id) = self.closest(origin, dir, t_max)?;
+        Some((t, Vec3::from(self.tris[id].ng).normalize_or_zero()))
     }
 
     /// Distance to the closest hit in (0, t_max], if any.
     #[inline]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<f32> {
-        let bvh = self.bvh.as_ref()?;
-        let ray = shifted_ray(origin, dir, t_max);
-        let mut hit = RayHit::none();
-        bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
-            .then_some(hit.t - BOX_EPSILON_SHIFT)
+        self.closest(origin, dir, t_max).map(|(t, _)| t)
     }
 }
 
