@@ -101,7 +101,7 @@ fn main() {
     probe("plane", &g, 256, 2.0, &runs, &|p| {
         p.z.abs() < 1e-3 && p.x.abs() < 0.8 && p.y.abs() < 0.8
     });
-    let runs = [(8, 8.0, 2)];
+    let runs = [(8, 8.0, 2), (32, 8.0, 2)];
     for (name, half_h, d) in [
         ("wall_h1_d10", 0.5f32, 10.0),
         ("wall_h20_d1", 10.0, 1.0),
