@@ -351,3 +351,49 @@ fn a_wall_top_edge_does_not_darken_the_floor() {
     eprintln!("bias {bias} over {} receivers", sel.len());
     assert!(bias.abs() < 0.002, "filtered bias {bias}");
 }
+
+#[test]
+fn second_pass_continues_the_sparse_sequence() {
+    // Every cell brute-forced (min weight out of reach): the second pass is
+    // then Monte Carlo over the whole hemisphere with cell_rays = 2, 128
+    // points of the receiver's sparse Sobol sequence, of which the 8 sparse
+    // rays are reused, not traced again. Against the closed form of a
+    // receiver beside a wall it must be as accurate as 128-ray Monte Carlo
+    // (same sequence type, another seed); m rays drawn per cell
+    // independently lose the sequence's stratification across cells.
+    let (a, d) = (0.5f32, 1.0f64);
+    let recv = quad([0.0; 3], [0.25, 0.0, 0.0], [0.0, 0.25, 0.0], true);
+    let wall = quad([a, 0.0, 1.2], [0.0, 0.0, 1.2], [0.0, 1.2, 0.0], true);
+    let sc = scene(&glb(&[recv, wall], plain_nodes(2)));
+    let mut f = filtered(256, Some(d));
+    f.filter.min_weight = 1e9;
+    let f = aobake::bake_scene(&sc, &f).unwrap();
+    let mc = aobake::bake_scene(&sc, &settings(256, 128, Some(d))).unwrap();
+    let s = &f.geometry.space;
+    let rmse = |b: &aobake::pipeline::Baked| {
+        let (mut sq, mut n) = (0.0f64, 0usize);
+        for i in 0..b.receivers.len() {
+            let p = s.center.as_vec3() + b.receivers.position[i] * s.diagonal as f32;
+            if p.z.abs() > 1e-4 || p.x.abs() > 0.24 || p.y.abs() > 0.24 {
+                continue;
+            }
+            // Closed form (tests/analytic.rs): s = distance to the wall / D.
+            let sw = (a - p.x) as f64 / d;
+            let want = 1.0 - (sw.acos() - sw * (1.0 - sw * sw).sqrt()) / std::f64::consts::PI;
+            sq += (b.bake.ao[i] as f64 - want).powi(2);
+            n += 1;
+        }
+        assert!(n > 1000, "{n}");
+        (sq / n as f64).sqrt()
+    };
+    let (f_rmse, mc_rmse) = (rmse(&f), rmse(&mc));
+    eprintln!("all-brute filtered {f_rmse}, mc128 {mc_rmse}");
+    let stats = f.filter_stats.as_ref().unwrap();
+    assert_eq!(stats.cells_filtered, 0);
+    // Receivers that saw an occluder: 120 new rays each (128 less the 8
+    // reused), fewer only for rays below the geometric horizon.
+    let receivers = f.receivers.len() as u64 - stats.receivers_open;
+    let per = stats.brute_rays as f64 / receivers as f64;
+    assert!((115.0..=120.0).contains(&per), "{per} rays per receiver");
+    assert!(f_rmse < 1.1 * mc_rmse, "{f_rmse} vs {mc_rmse}");
+}
