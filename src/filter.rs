@@ -33,7 +33,7 @@
 //!    sequence continued to 64 m points, kept where they fall in a marked
 //!    cell (exactly m per cell; the sparse rays among them are reused), so
 //!    the second pass keeps the sequence's stratification across cells
-//!    ([`brute_force_cells`]).
+//!    (`brute_force_cells`).
 //!
 //! Results are written as occlusion subtracted from the open hemisphere:
 //! AO = 1 - sum_c O_c / 64 and c_i = (A_l/pi) Y_i(n) - sum_c (O Y_i)_c / 64,
