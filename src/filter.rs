@@ -888,19 +888,25 @@ fn filter_receiver(
         marked |= 1 << c;
         contact += (sc.z_min[c].is_finite()
             && needs_brute_force(sc.z_min[c], s.omega_v_max, footprint)) as u32;
+        // The second pass replaces whatever weight the filter gave it
+        // (adding the filter's few samples to it measured worse on Sponza:
+        // AO RMSE 0.0128 -> 0.0132 at 8:4).
+        sc.w[c] = 0.0;
+        sc.occ[c] = 0.0;
+        sc.occ_sh[c] = [0.0; SH_COUNT];
     }
     let brute_rays = if marked != 0 {
-        brute_force_cells(
-            receivers,
-            samples,
-            tracer,
-            s,
-            r,
-            &frame,
-            marked,
-            &mut occ_ao,
-            &mut occ_sh,
-        )
+        let traced = brute_force_cells(receivers, samples, tracer, s, r, &frame, marked, sc);
+        for c in 0..CELL_COUNT {
+            if marked & (1 << c) != 0 && sc.occ[c] > 0.0 {
+                let inv = inv_cells / sc.w[c];
+                occ_ao += sc.occ[c] * inv;
+                for (acc, v) in occ_sh.iter_mut().zip(sc.occ_sh[c]) {
+                    *acc += v * inv;
+                }
+            }
+        }
+        traced
     } else {
         0
     };
@@ -919,8 +925,8 @@ fn filter_receiver(
 }
 
 /// The second pass for receiver `r`: Monte Carlo over the cells set in
-/// `marked`, added to `occ_ao` and `occ_sh` as occlusion (each cell weighs
-/// 1/64). Returns the rays traced.
+/// `marked`, whose sums in `sc` (weight, occluded weight, occluded SH) must
+/// be zero on entry. Returns the rays traced.
 ///
 /// The rays are the receiver's own sparse sequence continued: points
 /// `0..64 m` (m = `cell_rays`) of the same Owen-scrambled Sobol sequence,
@@ -941,8 +947,7 @@ fn brute_force_cells(
     r: usize,
     frame: &Frame,
     marked: u64,
-    occ_ao: &mut f32,
-    occ_sh: &mut [f32; SH_COUNT],
+    sc: &mut Scratch,
 ) -> u32 {
     let geo = receivers.geo_normal[r];
     let origin = offset_origin(receivers.position[r], geo, receivers.footprint[r]);
@@ -950,11 +955,11 @@ fn brute_force_cells(
     let seed = receiver_seed(s.seed, receivers.texel[r] as u64, 1);
     let k = samples.per_receiver;
     let m = s.cell_rays.max(1);
-    let inv = 1.0 / (CELL_COUNT as f32 * m as f32);
     let mut traced = 0u32;
     for i in 0..CELL_COUNT as u32 * m {
         let u = sobol_2d(i, seed);
-        if marked & (1 << square_cell(u)) == 0 {
+        let c = square_cell(u);
+        if marked & (1 << c) == 0 {
             continue;
         }
         let (d, occluded) = if (i as usize) < k {
@@ -966,9 +971,10 @@ fn brute_force_cells(
             traced += (d.dot(geo) > 0.0) as u32;
             (d, !tracer.receiver_visible(origin, geo, d, s.max_distance))
         };
+        sc.w[c] += 1.0;
         if occluded {
-            *occ_ao += inv;
-            sh::accumulate(occ_sh, inv, d);
+            sc.occ[c] += 1.0;
+            sh::accumulate(&mut sc.occ_sh[c], 1.0, d);
         }
     }
     traced
