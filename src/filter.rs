@@ -325,6 +325,17 @@ pub fn reproject(receiver: Vec3, o: Vec3, d: Vec3, target: Vec3) -> Option<(Vec3
     Some((e, (rel + d * u).length(), dist))
 }
 
+/// Where a neighbour's hit lies relative to the receiver: the neighbour at
+/// `rel` from the receiver, its ray `d` hitting at distance `t`. Summed
+/// from the offset, not from absolute positions: `pj + d t - p` rounds a
+/// hit closer than an ulp of the coordinates (a surface through the
+/// receiver, ~1e-8 of the scene) to exactly the receiver, which then
+/// looked open (two-cylinder engine at 1024: a texel of AO 0.5 came out 1).
+#[inline]
+pub fn hit_offset(rel: Vec3, d: Vec3, t: f32) -> Vec3 {
+    rel + d * t
+}
+
 /// Squared tangent offset x^2 of a sample ray (origin at `rel` from the
 /// receiver, direction `d`) re-aimed along the effective direction `e`:
 /// where the ray crosses the plane through the receiver perpendicular to
@@ -673,9 +684,17 @@ fn filter_receiver(
             } else {
                 // The hit point is the target of Figure 6: its direction
                 // from the receiver is the effective direction.
-                let v = pj + d * t - p;
+                let v = hit_offset(pj - p, d, t);
                 let z = v.length();
-                if v.dot(n) > 0.0 && z > 0.0 && z.is_finite() {
+                if z == 0.0 {
+                    // The receiver's own ray hit at distance 0 (a surface
+                    // through its origin): contact in the ray's cell.
+                    if let Some(c) = sample_cell(samples, i, same_frame, &frame) {
+                        sc.z_min[c] = 0.0;
+                        sc.hits[c] = sc.hits[c].saturating_add(1);
+                        any_occluder = true;
+                    }
+                } else if v.dot(n) > 0.0 && z.is_finite() {
                     let e = v / z;
                     let c = cell_of_fast(frame.to_local(e));
                     sc.hit_cache.push(CachedHit {
@@ -983,6 +1002,22 @@ fn brute_force_cells(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_hit_at_distance_near_zero_keeps_its_distance() {
+        let p = Vec3::new(0.31, -0.27, 0.4);
+        let d = Vec3::new(0.6, 0.0, 0.8);
+        // The receiver's own ray (rel = 0) hitting at 1.5e-9.
+        let v = hit_offset(p - p, d, 1.5e-9);
+        assert!((v.length() - 1.5e-9).abs() < 1e-15, "{}", v.length());
+        assert!((v / v.length() - d).length() < 1e-6);
+        // The absolute form loses it entirely.
+        assert_eq!((p + d * 1.5e-9 - p).length(), 0.0);
+        // A neighbour's hit: the same point as the absolute form.
+        let pj = p + Vec3::new(0.01, 0.002, 0.0);
+        let v = hit_offset(pj - p, d, 0.2);
+        assert!((v - (pj + d * 0.2 - p)).length() < 1e-7);
+    }
 
     #[test]
     fn misses_of_open_cells_aim_at_the_farthest_occluded_neighbour_cell() {

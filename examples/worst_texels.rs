@@ -1,0 +1,88 @@
+//! The worst texels of a filtered bake against a Monte Carlo reference,
+//! with the filter's per-receiver diagnostics: where a large error is.
+//!
+//!     cargo run --release --example worst_texels -- SCENE.glb [RES] [K] [R] [REF_RAYS]
+use aobake::pipeline::{self, FilterOptions, Method};
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    let path = std::path::Path::new(&a[1]);
+    let arg = |i: usize, d: f64| a.get(i).and_then(|v| v.parse().ok()).unwrap_or(d);
+    let (res, k, r, refs) = (arg(2, 512.0), arg(3, 8.0), arg(4, 4.0), arg(5, 256.0));
+    let bytes = std::fs::read(path).unwrap();
+    let doc = aobake::load::container::parse(&bytes, path.parent().unwrap()).unwrap();
+    let sc = aobake::load::Scene::from_document(doc).unwrap();
+    let mut s = aobake::Settings {
+        size: aobake::unwrap::AtlasSize::Resolution(res as u32),
+        rays: refs as u32,
+        progress: false,
+        ..Default::default()
+    };
+    s.fill_inside = false;
+    let p = pipeline::prepare(&sc, &s).unwrap();
+    let reference = pipeline::bake_prepared(&p, &s).unwrap().bake;
+    let mut f = s.clone();
+    f.method = Method::Filtered;
+    f.filter = FilterOptions {
+        sparse_rays: k as u32,
+        gather_radius: r as f32,
+        ..FilterOptions::default()
+    };
+    let out = pipeline::bake_prepared(&p, &f).unwrap();
+    let st = out.filter_stats.unwrap();
+    let mut idx: Vec<usize> = (0..p.receivers.len()).collect();
+    idx.sort_by(|&i, &j| {
+        let e = |i: usize| (out.bake.ao[i] - reference.ao[i]).abs();
+        e(j).total_cmp(&e(i))
+    });
+    let space = &p.geometry.space;
+    let fs = aobake::filter::FilterSettings {
+        sparse_rays: k as u32,
+        gather_radius: r as f32,
+        max_distance: p.max_distance,
+        ..Default::default()
+    };
+    let samples = aobake::filter::sparse_pass(&p.receivers, &p.tracer, &fs);
+    let kk = k as usize;
+    for &i in idx.iter().take(12) {
+        let fp = p.receivers.footprint[i];
+        println!(
+            "texel {:7} at {:?}: filtered {:.3} reference {:.3} | brute {:.2} z_min {:.1} fp neighbours {} sparse AO {:.2} n {:?} geo {:?}",
+            p.receivers.texel[i],
+            (space.center.as_vec3() + p.receivers.position[i] * space.diagonal as f32).to_array(),
+            out.bake.ao[i],
+            reference.ao[i],
+            st.brute_fraction[i],
+            st.z_min[i] / fp,
+            st.neighbours[i],
+            st.sparse_ao[i],
+            p.receivers.normal[i].to_array(),
+            p.receivers.geo_normal[i].to_array(),
+        );
+        let ts: Vec<String> = (i * kk..(i + 1) * kk)
+            .map(|q| {
+                format!(
+                    "t {:.2e} d.geo {:.3}",
+                    samples.t[q],
+                    samples.dir[q].dot(p.receivers.geo_normal[i])
+                )
+            })
+            .collect();
+        if std::env::var("CELLS").is_ok() {
+            let cells = aobake::filter::cell_estimates(&p.receivers, &samples, &p.tracer, &fs, i);
+            let nz: Vec<String> = cells
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.0 > 0.0 || c.2)
+                .map(|(c, v)| format!("{c}:{:.1}/{:.1}/{}", v.0, v.1, v.2 as u8))
+                .collect();
+            println!("   cells: {}", nz.join(" "));
+        }
+        println!(
+            "   own rays: {} (max distance {:.2e}, footprint {:.2e})",
+            ts.join(", "),
+            p.max_distance,
+            fp
+        );
+    }
+}
