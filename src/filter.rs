@@ -614,6 +614,31 @@ fn sample_cell(samples: &Samples, i: usize, same_frame: bool, frame: &Frame) -> 
     (ld.z > 0.0).then(|| cell_of_fast(ld))
 }
 
+/// The receiver Algorithm 1 is filtering: its position, normals, texel
+/// footprint and shading frame.
+#[derive(Clone, Copy)]
+struct Receiver {
+    p: Vec3,
+    n: Vec3,
+    geo: Vec3,
+    footprint: f32,
+    frame: Frame,
+}
+
+impl Receiver {
+    fn new(receivers: &Receivers, r: usize) -> Receiver {
+        Receiver {
+            p: receivers.position[r],
+            n: receivers.normal[r],
+            geo: receivers.geo_normal[r],
+            footprint: receivers.footprint[r],
+            frame: Frame::from_normal(receivers.normal[r]),
+        }
+    }
+}
+
+/// Algorithm 1 for receiver `r`, then the second pass for the cells it
+/// cannot serve; combines both into AO and SH.
 fn filter_receiver(
     receivers: &Receivers,
     samples: &Samples,
@@ -623,15 +648,117 @@ fn filter_receiver(
     r: usize,
     sc: &mut Scratch,
 ) -> ReceiverResult {
-    let p = receivers.position[r];
-    let n = receivers.normal[r];
-    let geo = receivers.geo_normal[r];
-    let footprint = receivers.footprint[r];
-    let frame = Frame::from_normal(n);
-    let k = samples.per_receiver;
-    let d_max = s.max_distance;
+    let rc = Receiver::new(receivers, r);
+    let Receiver {
+        n,
+        geo,
+        footprint,
+        frame,
+        ..
+    } = rc;
+    gather_neighbours(receivers, tree, s, &rc, sc);
+    let any_occluder = depth_bounds(receivers, samples, s, &rc, sc);
+    let neighbours = sc.neighbours.len() as u32;
+    // Early out: the neighbourhood's rays saw no occluder (and enough of
+    // them looked: at least one per cell on average).
+    // The shading hemisphere must also lie above the geometric plane (within
+    // 2.6 degrees), or part of it is occluded by the surface itself.
+    let looked: u32 = sc.count.iter().map(|&c| c as u32).sum();
+    if !any_occluder && looked >= CELL_COUNT as u32 && n.dot(geo) > OPEN_NORMAL_AGREEMENT {
+        return ReceiverResult {
+            ao: 1.0,
+            sh: sh::open_hemisphere(n),
+            filtered: 0,
+            brute: 0,
+            contact: 0,
+            open: CELL_COUNT as u32,
+            brute_rays: 0,
+            z_min: f32::INFINITY,
+            neighbours,
+        };
+    }
 
-    // Neighbours that may lend rays (the leak rule).
+    let (nearest, reach2) = mark_cells(s, &rc, sc);
+    filter_samples(receivers, samples, s, &rc, reach2, sc);
+
+    // Normalize, brute-force what the filter cannot serve, combine.
+    let mut occ_ao = 0.0f32;
+    let mut occ_sh = [0.0f32; SH_COUNT];
+    let (mut filtered, mut brute, mut open) = (0u32, 0u32, 0u32);
+    let mut contact = 0u32;
+    let mut marked = 0u64;
+    let inv_cells = 1.0 / CELL_COUNT as f32;
+    for c in 0..CELL_COUNT {
+        if !sc.brute[c] && sc.w[c] >= s.min_weight {
+            if sc.occ[c] == 0.0 {
+                open += 1;
+                continue;
+            }
+            filtered += 1;
+            let inv = inv_cells / sc.w[c];
+            occ_ao += sc.occ[c] * inv;
+            for (acc, v) in occ_sh.iter_mut().zip(sc.occ_sh[c]) {
+                *acc += v * inv;
+            }
+            continue;
+        }
+        brute += 1;
+        marked |= 1 << c;
+        contact += (sc.z_min[c].is_finite()
+            && needs_brute_force(sc.z_min[c], s.omega_v_max, footprint)) as u32;
+        // The second pass replaces whatever weight the filter gave it
+        // (adding the filter's few samples to it measured worse on Sponza:
+        // AO RMSE 0.0128 -> 0.0132 at 8:4).
+        sc.w[c] = 0.0;
+        sc.occ[c] = 0.0;
+        sc.occ_sh[c] = [0.0; SH_COUNT];
+    }
+    let brute_rays = if marked != 0 {
+        let traced = brute_force_cells(receivers, samples, tracer, s, r, &frame, marked, sc);
+        for c in 0..CELL_COUNT {
+            if marked & (1 << c) != 0 && sc.occ[c] > 0.0 {
+                let inv = inv_cells / sc.w[c];
+                occ_ao += sc.occ[c] * inv;
+                for (acc, v) in occ_sh.iter_mut().zip(sc.occ_sh[c]) {
+                    *acc += v * inv;
+                }
+            }
+        }
+        traced
+    } else {
+        0
+    };
+    let open_sh = sh::open_hemisphere(n);
+    ReceiverResult {
+        ao: (1.0 - occ_ao).clamp(0.0, 1.0),
+        sh: std::array::from_fn(|i| open_sh[i] - occ_sh[i]),
+        filtered,
+        brute,
+        contact,
+        open,
+        brute_rays,
+        z_min: nearest,
+        neighbours,
+    }
+}
+
+/// The neighbours that may lend rays (the leak rule, [`lends_rays`]) within
+/// the gather radius, into `sc.neighbours`.
+#[inline]
+fn gather_neighbours(
+    receivers: &Receivers,
+    tree: &ImmutableKdTree<f32, 3>,
+    s: &FilterSettings,
+    rc: &Receiver,
+    sc: &mut Scratch,
+) {
+    let Receiver {
+        p,
+        n,
+        geo,
+        footprint,
+        ..
+    } = *rc;
     let reach = s.gather_radius * footprint;
     sc.neighbours.clear();
     tree.query(&p.to_array())
@@ -651,8 +778,25 @@ fn filter_receiver(
                 sc.neighbours.push(j as u32);
             }
         });
+}
 
-    // Algorithm 1, lines 1-14: depth bounds per cell.
+/// Algorithm 1, lines 1-10: per-cell z_min, z_max and hit counts from the
+/// neighbours' hits in the receiver's hemisphere, the open evidence of
+/// misses per cell, and each hit's effective direction cached for the
+/// filter. Returns whether any occluder within the max distance was seen.
+#[inline]
+fn depth_bounds(
+    receivers: &Receivers,
+    samples: &Samples,
+    s: &FilterSettings,
+    rc: &Receiver,
+    sc: &mut Scratch,
+) -> bool {
+    let Receiver {
+        p, n, geo, frame, ..
+    } = *rc;
+    let k = samples.per_receiver;
+    let d_max = s.max_distance;
     sc.z_min = [f32::INFINITY; CELL_COUNT];
     sc.z_max = [0.0; CELL_COUNT];
     sc.count = [0; CELL_COUNT];
@@ -714,27 +858,17 @@ fn filter_receiver(
         }
     }
     sc.hit_start.push(sc.hit_cache.len() as u32);
-    let neighbours = sc.neighbours.len() as u32;
-    // Early out: the neighbourhood's rays saw no occluder (and enough of
-    // them looked: at least one per cell on average).
-    // The shading hemisphere must also lie above the geometric plane (within
-    // 2.6 degrees), or part of it is occluded by the surface itself.
-    let looked: u32 = sc.count.iter().map(|&c| c as u32).sum();
-    if !any_occluder && looked >= CELL_COUNT as u32 && n.dot(geo) > OPEN_NORMAL_AGREEMENT {
-        return ReceiverResult {
-            ao: 1.0,
-            sh: sh::open_hemisphere(n),
-            filtered: 0,
-            brute: 0,
-            contact: 0,
-            open: CELL_COUNT as u32,
-            brute_rays: 0,
-            z_min: f32::INFINITY,
-            neighbours,
-        };
-    }
+    any_occluder
+}
 
-    // Lines 11-14: spatial radius, mid depth, brute-force marks.
+/// Algorithm 1, lines 11-14: per cell the spatial radius (Eq. 8), the mid
+/// depth (Eq. 9) and the brute-force mark, and where misses are re-aimed.
+/// Returns the receiver's nearest occluder and the squared gather reach the
+/// filtered cells can use.
+#[inline]
+fn mark_cells(s: &FilterSettings, rc: &Receiver, sc: &mut Scratch) -> (f32, f32) {
+    let footprint = rc.footprint;
+    let reach = s.gather_radius * footprint;
     let nearest = sc.z_min.iter().copied().fold(f32::INFINITY, f32::min);
     let mut widest = 0.0f32;
     for c in 0..CELL_COUNT {
@@ -772,7 +906,25 @@ fn filter_receiver(
     // The gather radius shrinks to what the filtered cells can use.
     let reach2 = widest.min(reach).powi(2);
 
-    // Lines 15-33: filter the neighbours' samples into the cells.
+    (nearest, reach2)
+}
+
+/// Algorithm 1, lines 15-33: each neighbour sample within `reach2` adds its
+/// weight, and its occlusion, to the cell of its effective direction.
+#[inline]
+fn filter_samples(
+    receivers: &Receivers,
+    samples: &Samples,
+    s: &FilterSettings,
+    rc: &Receiver,
+    reach2: f32,
+    sc: &mut Scratch,
+) {
+    let Receiver {
+        p, n, geo, frame, ..
+    } = *rc;
+    let k = samples.per_receiver;
+    let d_max = s.max_distance;
     sc.w = [0.0; CELL_COUNT];
     sc.occ = [0.0; CELL_COUNT];
     sc.occ_sh = [[0.0; SH_COUNT]; CELL_COUNT];
@@ -880,66 +1032,6 @@ fn filter_receiver(
                 sh::accumulate(&mut sc.occ_sh[c], w, e);
             }
         }
-    }
-
-    // Normalize, brute-force what the filter cannot serve, combine.
-    let mut occ_ao = 0.0f32;
-    let mut occ_sh = [0.0f32; SH_COUNT];
-    let (mut filtered, mut brute, mut open) = (0u32, 0u32, 0u32);
-    let mut contact = 0u32;
-    let mut marked = 0u64;
-    let inv_cells = 1.0 / CELL_COUNT as f32;
-    for c in 0..CELL_COUNT {
-        if !sc.brute[c] && sc.w[c] >= s.min_weight {
-            if sc.occ[c] == 0.0 {
-                open += 1;
-                continue;
-            }
-            filtered += 1;
-            let inv = inv_cells / sc.w[c];
-            occ_ao += sc.occ[c] * inv;
-            for (acc, v) in occ_sh.iter_mut().zip(sc.occ_sh[c]) {
-                *acc += v * inv;
-            }
-            continue;
-        }
-        brute += 1;
-        marked |= 1 << c;
-        contact += (sc.z_min[c].is_finite()
-            && needs_brute_force(sc.z_min[c], s.omega_v_max, footprint)) as u32;
-        // The second pass replaces whatever weight the filter gave it
-        // (adding the filter's few samples to it measured worse on Sponza:
-        // AO RMSE 0.0128 -> 0.0132 at 8:4).
-        sc.w[c] = 0.0;
-        sc.occ[c] = 0.0;
-        sc.occ_sh[c] = [0.0; SH_COUNT];
-    }
-    let brute_rays = if marked != 0 {
-        let traced = brute_force_cells(receivers, samples, tracer, s, r, &frame, marked, sc);
-        for c in 0..CELL_COUNT {
-            if marked & (1 << c) != 0 && sc.occ[c] > 0.0 {
-                let inv = inv_cells / sc.w[c];
-                occ_ao += sc.occ[c] * inv;
-                for (acc, v) in occ_sh.iter_mut().zip(sc.occ_sh[c]) {
-                    *acc += v * inv;
-                }
-            }
-        }
-        traced
-    } else {
-        0
-    };
-    let open_sh = sh::open_hemisphere(n);
-    ReceiverResult {
-        ao: (1.0 - occ_ao).clamp(0.0, 1.0),
-        sh: std::array::from_fn(|i| open_sh[i] - occ_sh[i]),
-        filtered,
-        brute,
-        contact,
-        open,
-        brute_rays,
-        z_min: nearest,
-        neighbours,
     }
 }
 
