@@ -38,8 +38,9 @@ pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
     let mut bytes = texels * BYTES_PER_TEXEL;
     if s.method == Method::Filtered {
         // Sparse samples (direction, distance, cell, hit normal: 29 B each),
-        // the k-d tree's points and per-receiver filter statistics (~40 B).
-        bytes += texels * (s.filter.sparse_rays as u64 * 29 + 12 + 40);
+        // the k-d tree's points, per-receiver filter statistics (~40 B) and
+        // the receivers reordered for locality (44 B).
+        bytes += texels * (s.filter.sparse_rays as u64 * 29 + 12 + 40 + 44);
     }
     bytes
 }
@@ -659,9 +660,12 @@ pub fn bake_prepared(p: &Prepared, s: &Settings) -> Result<BakePasses> {
         Method::Filtered => {
             check_filter_options(&s.filter)?;
             let fs = filter_settings(s, mc_settings.max_distance);
-            let samples = filter::sparse_pass(receivers, tracer, &fs);
+            let order = filter::locality_order(receivers);
+            let local = filter::permuted(receivers, &order);
+            let samples = filter::sparse_pass(&local, tracer, &fs);
             t.lap("sparse pass");
-            let (b, stats) = filter::filter_pass(receivers, &samples, tracer, &fs, &|n| pb.inc(n))?;
+            let (b, stats) = filter::filter_pass(&local, &samples, tracer, &fs, &|n| pb.inc(n))?;
+            let (b, stats) = filter::unpermuted(b, stats, &order);
             t.lap("filter pass");
             (b, Some(stats))
         }

@@ -42,6 +42,16 @@ pub struct Receivers {
 }
 
 impl Receivers {
+    /// The atlas size and overlap diagnostics, with no receivers.
+    pub fn clone_header(&self) -> Receivers {
+        Receivers {
+            width: self.width,
+            height: self.height,
+            overlapping_texels: self.overlapping_texels,
+            first_overlap: self.first_overlap,
+            ..Default::default()
+        }
+    }
     pub fn len(&self) -> usize {
         self.texel.len()
     }
