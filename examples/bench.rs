@@ -210,9 +210,10 @@ fn main() {
             ao.p99,
             sh.rmse,
             rep.filter.as_ref().map_or("-".into(), |f| format!(
-                "{:.1}% ({:.1}% contact)",
+                "{:.1}% ({:.1}% contact, {:.1}% no hit)",
                 100.0 * f.cells_brute_forced,
-                100.0 * f.cells_brute_contact
+                100.0 * f.cells_brute_contact,
+                100.0 * f.cells_brute_no_hit
             )),
         );
         if args.iter().any(|a| a == "--breakdown") {

@@ -87,7 +87,11 @@ use std::sync::LazyLock;
 /// Filter settings (paper defaults where the paper gives one).
 #[derive(Clone, Copy, Debug)]
 pub struct FilterSettings {
-    /// Sparse rays per receiver (paper: 4-32).
+    /// Sparse rays per receiver (paper: 4-32). 4 measured best at the
+    /// default radius: at 1024 texels against 8 it took 0.91x the time on
+    /// Sponza (AO RMSE 0.0113 vs 0.0115), 0.98x on the engine (0.0107 vs
+    /// 0.0108) and 0.82x on the Cornell box (0.0071 vs 0.0069, where
+    /// Monte Carlo pays about 4% more time per 3% less error).
     pub sparse_rays: u32,
     /// Neighbour gather radius in texel footprints (paper: 8-16 pixels).
     pub gather_radius: f32,
@@ -106,7 +110,7 @@ pub struct FilterSettings {
 impl Default for FilterSettings {
     fn default() -> Self {
         FilterSettings {
-            sparse_rays: 8,
+            sparse_rays: 4,
             gather_radius: 4.0,
             omega_v_max: 2.0,
             min_weight: 4.0,
@@ -130,6 +134,9 @@ pub struct FilterStats {
     /// test (an occluder closer than 2 Omega_v footprints), the rest for too
     /// little weight.
     pub cells_contact: u64,
+    /// Of `cells_brute`: cells where no neighbour ray hit an occluder but too
+    /// few looked through them to trust them open ([`MIN_CELL_SAMPLES`]).
+    pub cells_unseen: u64,
     pub cells_open: u64,
     /// Receivers whose whole neighbourhood saw no occluder.
     pub receivers_open: u64,
@@ -505,6 +512,7 @@ struct ReceiverResult {
     filtered: u32,
     brute: u32,
     contact: u32,
+    unseen: u32,
     open: u32,
     brute_rays: u32,
     z_min: f32,
@@ -557,6 +565,7 @@ pub fn filter_pass(
         stats.cells_filtered += res.filtered as u64;
         stats.cells_brute += res.brute as u64;
         stats.cells_contact += res.contact as u64;
+        stats.cells_unseen += res.unseen as u64;
         stats.cells_open += res.open as u64;
         stats.receivers_open += (res.open as usize == CELL_COUNT) as u64;
         stats
@@ -739,6 +748,7 @@ fn filter_receiver(
             filtered: 0,
             brute: 0,
             contact: 0,
+            unseen: 0,
             open: CELL_COUNT as u32,
             brute_rays: 0,
             z_min: f32::INFINITY,
@@ -753,7 +763,7 @@ fn filter_receiver(
     let mut occ_ao = 0.0f32;
     let mut occ_sh = [0.0f32; SH_COUNT];
     let (mut filtered, mut brute, mut open) = (0u32, 0u32, 0u32);
-    let mut contact = 0u32;
+    let (mut contact, mut unseen) = (0u32, 0u32);
     let mut marked = 0u64;
     let inv_cells = 1.0 / CELL_COUNT as f32;
     for c in 0..CELL_COUNT {
@@ -774,6 +784,7 @@ fn filter_receiver(
         marked |= 1 << c;
         contact += (sc.z_min[c].is_finite()
             && needs_brute_force(sc.z_min[c], s.omega_v_max, footprint)) as u32;
+        unseen += sc.z_min[c].is_infinite() as u32;
         // The second pass replaces whatever weight the filter gave it
         // (adding the filter's few samples to it measured worse on Sponza:
         // AO RMSE 0.0128 -> 0.0132 at 8:4).
@@ -803,6 +814,7 @@ fn filter_receiver(
         filtered,
         brute,
         contact,
+        unseen,
         open,
         brute_rays,
         z_min: nearest,

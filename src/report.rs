@@ -202,6 +202,9 @@ pub struct RunFigures {
     pub cells_filtered: Option<f64>,
     pub cells_brute_forced: Option<f64>,
     pub cells_brute_contact: Option<f64>,
+    /// Of all cells: brute-forced because no neighbour ray hit in them and
+    /// too few looked through them to trust them open.
+    pub cells_brute_no_hit: Option<f64>,
 }
 
 /// The equal-error comparison at the error of 256-ray Monte Carlo.
@@ -388,6 +391,7 @@ pub fn sweep(scene: &Scene, input: &str, load_seconds: f64, rs: &ReportSettings)
             cells_filtered: fs.map(|f| f.cell_share(f.cells_filtered)),
             cells_brute_forced: fs.map(|f| f.cell_share(f.cells_brute)),
             cells_brute_contact: fs.map(|f| f.cell_share(f.cells_contact)),
+            cells_brute_no_hit: fs.map(|f| f.cell_share(f.cells_unseen)),
         });
         pb.inc(1);
     }
@@ -618,7 +622,7 @@ pub fn markdown(r: &SweepReport) -> String {
         "Reference: {}-ray Monte Carlo (seed {}), {:.2} s. Shared stages (load, unwrap, rasterize, BVH, dilate, encode, write): {:.2} s, counted in every end-to-end time. Errors are per texel against the reference; AO bias > 0 means too bright.\n",
         r.reference_rays, r.reference_seed, r.reference_seconds, r.shared_seconds
     ));
-    line("| run | end-to-end s | passes s | rays/texel | AO RMSE | AO bias | AO p99 | AO max | SH RMSE L0 | L1 | L2 | cells brute-forced (contact) |".into());
+    line("| run | end-to-end s | passes s | rays/texel | AO RMSE | AO bias | AO p99 | AO max | SH RMSE L0 | L1 | L2 | cells brute-forced (contact, no hit) |".into());
     line("|---|---|---|---|---|---|---|---|---|---|---|---|".into());
     for run in &r.runs {
         let passes: Vec<String> = run
@@ -644,8 +648,13 @@ pub fn markdown(r: &SweepReport) -> String {
             run.sh_rmse_band[0],
             run.sh_rmse_band[1],
             run.sh_rmse_band[2],
-            match (run.cells_brute_forced, run.cells_brute_contact) {
-                (Some(b), Some(c)) => format!("{:.1}% ({:.1}%)", 100.0 * b, 100.0 * c),
+            match (
+                run.cells_brute_forced,
+                run.cells_brute_contact,
+                run.cells_brute_no_hit,
+            ) {
+                (Some(b), Some(c), Some(u)) =>
+                    format!("{:.1}% ({:.1}%, {:.1}%)", 100.0 * b, 100.0 * c, 100.0 * u),
                 _ => "-".into(),
             }
         ));
@@ -741,6 +750,7 @@ mod tests {
             cells_filtered: None,
             cells_brute_forced: None,
             cells_brute_contact: None,
+            cells_brute_no_hit: None,
         }
     }
 

@@ -38,6 +38,30 @@ fn open_plane_is_exactly_open() {
 }
 
 #[test]
+fn too_few_rays_on_an_open_plane_brute_force_every_cell_as_unseen() {
+    // One sparse ray per texel and a one-texel gather: far fewer than one
+    // ray per cell reaches each receiver, so no receiver takes the open
+    // early-out and every cell, having seen no occluder but fewer than
+    // MIN_CELL_SAMPLES misses, is brute-forced and counted as unseen (none
+    // as contact). The brute-force rays find the plane open.
+    let g = glb(
+        &[quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true)],
+        plain_nodes(1),
+    );
+    let mut s = filtered(32, None);
+    s.filter.sparse_rays = 1;
+    s.filter.gather_radius = 1.0;
+    let b = aobake::bake_scene(&scene(&g), &s).unwrap();
+    let stats = b.filter_stats.as_ref().unwrap();
+    let cells = 64 * b.receivers.len() as u64;
+    assert_eq!(stats.receivers_open, 0);
+    assert_eq!(stats.cells_brute, cells);
+    assert_eq!(stats.cells_unseen, cells);
+    assert_eq!(stats.cells_contact, 0);
+    assert!(b.bake.ao.iter().all(|&a| a == 1.0));
+}
+
+#[test]
 fn parallel_plane_matches_closed_form() {
     // As in tests/analytic.rs: AO = (h/D)^2 for a receiver under a plane.
     let recv = quad([0.0; 3], [0.3, 0.0, 0.0], [0.0, 0.3, 0.0], true);
@@ -209,7 +233,7 @@ fn tilted_shading_normals_match_brute_force() {
 #[test]
 fn floor_beside_a_wall_beats_64_ray_monte_carlo() {
     // A floor with a wall standing on it, filtered with a wide gather
-    // (radius 8, where most cells are filtered, not brute-forced), against
+    // (K 8, radius 8, where most cells are filtered, not brute-forced), against
     // a 1024-ray Monte Carlo reference on the same receivers: the filter
     // must be unbiased within 0.005 and closer to the reference than an
     // independent 64-ray Monte Carlo bake is.
@@ -227,6 +251,7 @@ fn floor_beside_a_wall_beats_64_ray_monte_carlo() {
     });
     let mc = bake(settings(128, 64, Some(1.0)));
     let mut f = filtered(128, Some(1.0));
+    f.filter.sparse_rays = 8;
     f.filter.gather_radius = 8.0;
     let f = bake(f);
     let stats = f.filter_stats.as_ref().unwrap();
@@ -366,6 +391,7 @@ fn second_pass_continues_the_sparse_sequence() {
     let wall = quad([a, 0.0, 1.2], [0.0, 0.0, 1.2], [0.0, 1.2, 0.0], true);
     let sc = scene(&glb(&[recv, wall], plain_nodes(2)));
     let mut f = filtered(256, Some(d));
+    f.filter.sparse_rays = 8;
     f.filter.min_weight = 1e9;
     let f = aobake::bake_scene(&sc, &f).unwrap();
     let mc = aobake::bake_scene(&sc, &settings(256, 128, Some(d))).unwrap();

@@ -28,7 +28,7 @@ fn an_open_plane_has_zero_error_in_every_run() {
         plain_nodes(1),
     );
     let sweep =
-        report::sweep(&scene(&g), "plane", 0.0, &small("mc:4,filtered:4:4", 32, 4)).unwrap();
+        report::sweep(&scene(&g), "plane", 0.0, &small("mc:4,filtered:2:4", 32, 4)).unwrap();
     let r = &sweep.report;
     // The two runs asked for plus the defaults of each method.
     assert_eq!(r.runs.len(), 4);
@@ -119,7 +119,7 @@ fn cli_writes_every_file_and_refuses_bad_budgets() {
         .args(["--resolution", "48", "--reference-rays", "64"])
         .args([
             "--budgets",
-            "mc:4,mc:16,filtered:4:4",
+            "mc:4,mc:16,filtered:2:4",
             "--stability-rays",
             "8",
             "-q",
