@@ -131,12 +131,13 @@ pub struct FilterStats {
     pub cells_filtered: u64,
     pub cells_brute: u64,
     /// Of `cells_brute`: cells sent to brute force by the paper's bandlimit
-    /// test (an occluder closer than 2 Omega_v footprints), the rest for too
-    /// little weight.
+    /// test (an occluder closer than 2 Omega_v footprints).
     pub cells_contact: u64,
-    /// Of `cells_brute`: cells where no neighbour ray hit an occluder but too
-    /// few looked through them to trust them open ([`MIN_CELL_SAMPLES`]).
-    pub cells_unseen: u64,
+    /// Of `cells_brute`: cells in which no neighbour ray hit an occluder,
+    /// but too few looked through them to trust them open (fewer than
+    /// [`MIN_CELL_SAMPLES`] misses, or too little filter weight). The rest
+    /// of `cells_brute` had hits but too little weight.
+    pub cells_no_hit: u64,
     pub cells_open: u64,
     /// Receivers whose whole neighbourhood saw no occluder.
     pub receivers_open: u64,
@@ -512,7 +513,7 @@ struct ReceiverResult {
     filtered: u32,
     brute: u32,
     contact: u32,
-    unseen: u32,
+    no_hit: u32,
     open: u32,
     brute_rays: u32,
     z_min: f32,
@@ -565,7 +566,7 @@ pub fn filter_pass(
         stats.cells_filtered += res.filtered as u64;
         stats.cells_brute += res.brute as u64;
         stats.cells_contact += res.contact as u64;
-        stats.cells_unseen += res.unseen as u64;
+        stats.cells_no_hit += res.no_hit as u64;
         stats.cells_open += res.open as u64;
         stats.receivers_open += (res.open as usize == CELL_COUNT) as u64;
         stats
@@ -748,7 +749,7 @@ fn filter_receiver(
             filtered: 0,
             brute: 0,
             contact: 0,
-            unseen: 0,
+            no_hit: 0,
             open: CELL_COUNT as u32,
             brute_rays: 0,
             z_min: f32::INFINITY,
@@ -763,7 +764,7 @@ fn filter_receiver(
     let mut occ_ao = 0.0f32;
     let mut occ_sh = [0.0f32; SH_COUNT];
     let (mut filtered, mut brute, mut open) = (0u32, 0u32, 0u32);
-    let (mut contact, mut unseen) = (0u32, 0u32);
+    let (mut contact, mut no_hit) = (0u32, 0u32);
     let mut marked = 0u64;
     let inv_cells = 1.0 / CELL_COUNT as f32;
     for c in 0..CELL_COUNT {
@@ -784,7 +785,7 @@ fn filter_receiver(
         marked |= 1 << c;
         contact += (sc.z_min[c].is_finite()
             && needs_brute_force(sc.z_min[c], s.omega_v_max, footprint)) as u32;
-        unseen += sc.z_min[c].is_infinite() as u32;
+        no_hit += sc.z_min[c].is_infinite() as u32;
         // The second pass replaces whatever weight the filter gave it
         // (adding the filter's few samples to it measured worse on Sponza:
         // AO RMSE 0.0128 -> 0.0132 at 8:4).
@@ -814,7 +815,7 @@ fn filter_receiver(
         filtered,
         brute,
         contact,
-        unseen,
+        no_hit,
         open,
         brute_rays,
         z_min: nearest,

@@ -252,11 +252,11 @@ pub struct FilterReport {
     pub cells_filtered: f64,
     pub cells_brute_forced: f64,
     /// Of all cells: brute-forced by the paper's bandlimit test (occluder
-    /// closer than 2 Omega_v texel footprints); the rest of
-    /// `cells_brute_forced` had too little filter weight.
+    /// closer than 2 Omega_v texel footprints).
     pub cells_brute_contact: f64,
     /// Of all cells: brute-forced with no occluder seen in them, because
-    /// too few neighbour rays looked through them to trust them open.
+    /// too few neighbour rays looked through them to trust them open. The
+    /// rest of `cells_brute_forced` had hits but too little filter weight.
     pub cells_brute_no_hit: f64,
     pub cells_open: f64,
     /// Fraction of texels whose whole neighbourhood saw no occluder.
@@ -392,7 +392,7 @@ pub fn bake_scene(scene: &Scene, s: &Settings) -> Result<Baked> {
         cells_filtered: f.cell_share(f.cells_filtered),
         cells_brute_forced: f.cell_share(f.cells_brute),
         cells_brute_contact: f.cell_share(f.cells_contact),
-        cells_brute_no_hit: f.cell_share(f.cells_unseen),
+        cells_brute_no_hit: f.cell_share(f.cells_no_hit),
         cells_open: f.cell_share(f.cells_open),
         texels_open: f.receivers_open as f64 / receivers.len() as f64,
         sparse_pass_seconds: t.seconds("sparse pass"),

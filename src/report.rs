@@ -391,7 +391,7 @@ pub fn sweep(scene: &Scene, input: &str, load_seconds: f64, rs: &ReportSettings)
             cells_filtered: fs.map(|f| f.cell_share(f.cells_filtered)),
             cells_brute_forced: fs.map(|f| f.cell_share(f.cells_brute)),
             cells_brute_contact: fs.map(|f| f.cell_share(f.cells_contact)),
-            cells_brute_no_hit: fs.map(|f| f.cell_share(f.cells_unseen)),
+            cells_brute_no_hit: fs.map(|f| f.cell_share(f.cells_no_hit)),
         });
         pb.inc(1);
     }

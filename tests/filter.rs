@@ -38,11 +38,11 @@ fn open_plane_is_exactly_open() {
 }
 
 #[test]
-fn too_few_rays_on_an_open_plane_brute_force_every_cell_as_unseen() {
+fn too_few_rays_on_an_open_plane_brute_force_every_cell_as_no_hit() {
     // One sparse ray per texel and a one-texel gather: far fewer than one
     // ray per cell reaches each receiver, so no receiver takes the open
     // early-out and every cell, having seen no occluder but fewer than
-    // MIN_CELL_SAMPLES misses, is brute-forced and counted as unseen (none
+    // MIN_CELL_SAMPLES misses, is brute-forced and counted as no-hit (none
     // as contact). The brute-force rays find the plane open.
     let g = glb(
         &[quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true)],
@@ -56,7 +56,7 @@ fn too_few_rays_on_an_open_plane_brute_force_every_cell_as_unseen() {
     let cells = 64 * b.receivers.len() as u64;
     assert_eq!(stats.receivers_open, 0);
     assert_eq!(stats.cells_brute, cells);
-    assert_eq!(stats.cells_unseen, cells);
+    assert_eq!(stats.cells_no_hit, cells);
     assert_eq!(stats.cells_contact, 0);
     assert!(b.bake.ao.iter().all(|&a| a == 1.0));
 }
