@@ -11,12 +11,14 @@
 //! come from one run on one machine. `--dump-rays DIR` also writes 2M of the
 //! bake's Monte Carlo rays for `tools/embree_compare.py` and times obvhs on them.
 
-use aobake::mc::ReceiverRays;
-use aobake::metrics::error_stats;
-use aobake::pipeline::{self, Baked, FilterOptions, Method, Settings};
-use aobake::rasterize::Receivers;
+use aobake::atlas::AtlasSize;
+use aobake::atlas::Receivers;
+use aobake::bake::ReceiverRays;
+use aobake::bake::sheared::ShearedOptions;
+use aobake::pipeline::{self, Baked};
+use aobake::report::metrics::error_stats;
 use aobake::trace::Tracer;
-use aobake::unwrap::AtlasSize;
+use aobake::{Method, Settings};
 use rayon::prelude::*;
 use std::io::Write;
 use std::path::Path;
@@ -160,7 +162,7 @@ fn main() {
         let settings = match parts[0] {
             "mc" => mc(parts[1].parse().unwrap(), 7),
             "filtered" => {
-                let mut f = FilterOptions::default();
+                let mut f = ShearedOptions::default();
                 if let Some(k) = parts.get(1) {
                     f.sparse_rays = k.parse().unwrap();
                 }
@@ -268,7 +270,7 @@ fn main() {
 
 /// Where a filtered bake's AO error comes from: texels binned by their
 /// fraction of brute-forced cells, each bin's share of the squared error.
-fn breakdown(fs: &aobake::filter::FilterStats, ao: &[f32], reference: &[f32]) {
+fn breakdown(fs: &aobake::bake::sheared::FilterStats, ao: &[f32], reference: &[f32]) {
     const BINS: usize = 5;
     let mut count = [0usize; BINS];
     let mut sq = [0f64; BINS];

@@ -9,7 +9,10 @@
 //!     cargo run --release --example bias_probe
 #[path = "../tests/common/mod.rs"]
 mod common;
-use aobake::pipeline::{self, FilterOptions, Method};
+use aobake::Method;
+use aobake::bake::sheared::ShearedOptions;
+use aobake::pipeline;
+use aobake::stage::StageTimer;
 use common::*;
 
 fn probe(
@@ -23,8 +26,10 @@ fn probe(
     let sc = scene(g);
     let mut s = settings(res, 2048, Some(d));
     s.fill_inside = false;
-    let p = pipeline::prepare(&sc, &s).unwrap();
-    let reference = pipeline::bake_prepared(&p, &s).unwrap().bake;
+    let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
+    let reference = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+        .unwrap()
+        .bake;
     let space = &p.geometry.space;
     let sel: Vec<usize> = (0..p.receivers.len())
         .filter(|&i| keep(space.center.as_vec3() + p.receivers.position[i] * space.diagonal as f32))
@@ -32,13 +37,13 @@ fn probe(
     for &(k, r, c) in runs {
         let mut f = s.clone();
         f.method = Method::Filtered;
-        f.filter = FilterOptions {
+        f.filter = ShearedOptions {
             sparse_rays: k,
             gather_radius: r,
             cell_rays: c,
-            ..FilterOptions::default()
+            ..ShearedOptions::default()
         };
-        let out = pipeline::bake_prepared(&p, &f).unwrap();
+        let out = pipeline::bake_prepared(&p, &f, &mut StageTimer::new()).unwrap();
         let st = out.filter_stats.unwrap();
         let (mut bias, mut sq, mut bf) = (0.0f64, 0.0f64, 0.0f64);
         for &i in &sel {
@@ -71,7 +76,9 @@ fn probe(
             let mut m = s.clone();
             m.rays = 64;
             m.seed = 7;
-            let b = pipeline::bake_prepared(&p, &m).unwrap().bake;
+            let b = pipeline::bake_prepared(&p, &m, &mut StageTimer::new())
+                .unwrap()
+                .bake;
             (sel.iter()
                 .map(|&i| ((b.ao[i] - reference.ao[i]) as f64).powi(2))
                 .sum::<f64>()
@@ -122,7 +129,7 @@ fn main() {
 }
 
 fn cells_main() {
-    use aobake::filter;
+    use aobake::bake::sheared as filter;
     use aobake::sample::{CELL_COUNT, Frame, cosine_hemisphere, in_cell, sobol_2d};
     let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
     let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 1.0, 0.0], true);
@@ -130,7 +137,7 @@ fn cells_main() {
     let sc = scene(&g);
     let mut s = settings(256, 64, Some(10.0));
     s.fill_inside = false;
-    let p = pipeline::prepare(&sc, &s).unwrap();
+    let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
     let space = &p.geometry.space;
     let world = |i: usize| space.center.as_vec3() + p.receivers.position[i] * space.diagonal as f32;
     let k_env: u32 = std::env::var("K")
@@ -141,13 +148,16 @@ fn cells_main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(-0.1);
-    let fs = filter::FilterSettings {
+    let fs = filter::ShearedOptions {
         sparse_rays: k_env,
         gather_radius: 8.0,
-        max_distance: p.max_distance,
         ..Default::default()
     };
-    let samples = filter::sparse_pass(&p.receivers, &p.tracer, &fs);
+    let params = aobake::bake::BakeParams {
+        max_distance: p.max_distance,
+        seed: 0,
+    };
+    let samples = filter::sparse_pass(&p.receivers, &p.tracer, &fs, &params);
     // Average over receivers near (target_x, y in [-0.3, 0.3]).
     let rs: Vec<usize> = (0..p.receivers.len())
         .filter(|&i| {
@@ -160,7 +170,7 @@ fn cells_main() {
     let mut wsum = vec![0.0f64; CELL_COUNT];
     let mut nb = vec![0usize; CELL_COUNT];
     for &r in &rs {
-        let cells = filter::cell_estimates(&p.receivers, &samples, &p.tracer, &fs, r);
+        let cells = filter::cell_estimates(&p.receivers, &samples, &p.tracer, &fs, &params, r);
         let frame = Frame::from_normal(p.receivers.normal[r]);
         let geo = p.receivers.geo_normal[r];
         let origin =

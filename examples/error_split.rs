@@ -8,7 +8,10 @@
 //!     cargo run --release --example error_split -- SCENE.glb [RES] [RUN] [SEEDS] [REF_RAYS]
 //!
 //! RUN is `mc:N` or `filtered:K:R[:C]` (defaults `filtered:8:4`).
-use aobake::pipeline::{self, FilterOptions, Method};
+use aobake::Method;
+use aobake::bake::sheared::ShearedOptions;
+use aobake::pipeline;
+use aobake::stage::StageTimer;
 
 fn main() {
     let a: Vec<String> = std::env::args().collect();
@@ -18,30 +21,32 @@ fn main() {
     let seeds: u64 = a.get(4).and_then(|v| v.parse().ok()).unwrap_or(6);
     let refs: u32 = a.get(5).and_then(|v| v.parse().ok()).unwrap_or(2048);
     let bytes = std::fs::read(path).unwrap();
-    let doc = aobake::load::container::parse(&bytes, path.parent().unwrap()).unwrap();
-    let sc = aobake::load::Scene::from_document(doc).unwrap();
+    let doc = aobake::gltf::container::parse(&bytes, path.parent().unwrap()).unwrap();
+    let sc = aobake::gltf::Scene::from_document(doc).unwrap();
     let mut s = aobake::Settings {
-        size: aobake::unwrap::AtlasSize::Resolution(res),
+        size: aobake::atlas::AtlasSize::Resolution(res),
         rays: refs,
         progress: false,
         ..Default::default()
     };
     s.fill_inside = false;
-    let p = pipeline::prepare(&sc, &s).unwrap();
-    let reference = pipeline::bake_prepared(&p, &s).unwrap().bake;
+    let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
+    let reference = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+        .unwrap()
+        .bake;
     let parts: Vec<&str> = run.split(':').collect();
     let mut f = s.clone();
     if parts[0] == "mc" {
         f.rays = parts[1].parse().unwrap();
     } else {
         f.method = Method::Filtered;
-        f.filter = FilterOptions {
+        f.filter = ShearedOptions {
             sparse_rays: parts[1].parse().unwrap(),
             gather_radius: parts[2].parse().unwrap(),
             cell_rays: parts
                 .get(3)
-                .map_or(FilterOptions::default().cell_rays, |c| c.parse().unwrap()),
-            ..FilterOptions::default()
+                .map_or(ShearedOptions::default().cell_rays, |c| c.parse().unwrap()),
+            ..ShearedOptions::default()
         };
     }
     let n = p.receivers.len();
@@ -50,7 +55,7 @@ fn main() {
     let mut brute = vec![0.0f64; n];
     for seed in 0..seeds {
         f.seed = 0x5eed_0000 + seed * 7919;
-        let out = pipeline::bake_prepared(&p, &f).unwrap();
+        let out = pipeline::bake_prepared(&p, &f, &mut StageTimer::new()).unwrap();
         for i in 0..n {
             let e = (out.bake.ao[i] - reference.ao[i]) as f64;
             sum[i] += e;

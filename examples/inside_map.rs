@@ -3,8 +3,10 @@
 //!
 //!     cargo run --release --example inside_map -- SCENE.glb OUT.png [--resolution 512]
 
-use aobake::pipeline::{self, Settings};
-use aobake::unwrap::AtlasSize;
+use aobake::Settings;
+use aobake::atlas::AtlasSize;
+use aobake::pipeline;
+use aobake::stage::StageTimer;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -13,15 +15,15 @@ fn main() {
         .position(|a| a == "--resolution")
         .and_then(|i| args.get(i + 1))
         .map_or(512, |v| v.parse().unwrap());
-    let scene = aobake::load::load(std::path::Path::new(&args[0])).expect("load");
+    let scene = aobake::gltf::load(std::path::Path::new(&args[0])).expect("load");
     let s = Settings {
         size: AtlasSize::Resolution(resolution),
         rays: 16,
         progress: false,
         ..Default::default()
     };
-    let p = pipeline::prepare(&scene, &s).expect("prepare");
-    let passes = pipeline::bake_prepared(&p, &s).expect("bake");
+    let p = pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
+    let passes = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).expect("bake");
     let r = &p.receivers;
     let mut img = vec![0u8; (r.width * r.height * 3) as usize];
     for i in 0..r.len() {

@@ -2,7 +2,10 @@
 //! with the filter's per-receiver diagnostics: where a large error is.
 //!
 //!     cargo run --release --example worst_texels -- SCENE.glb [RES] [K] [R] [REF_RAYS]
-use aobake::pipeline::{self, FilterOptions, Method};
+use aobake::Method;
+use aobake::bake::sheared::ShearedOptions;
+use aobake::pipeline;
+use aobake::stage::StageTimer;
 
 fn main() {
     let a: Vec<String> = std::env::args().collect();
@@ -10,25 +13,27 @@ fn main() {
     let arg = |i: usize, d: f64| a.get(i).and_then(|v| v.parse().ok()).unwrap_or(d);
     let (res, k, r, refs) = (arg(2, 512.0), arg(3, 8.0), arg(4, 4.0), arg(5, 256.0));
     let bytes = std::fs::read(path).unwrap();
-    let doc = aobake::load::container::parse(&bytes, path.parent().unwrap()).unwrap();
-    let sc = aobake::load::Scene::from_document(doc).unwrap();
+    let doc = aobake::gltf::container::parse(&bytes, path.parent().unwrap()).unwrap();
+    let sc = aobake::gltf::Scene::from_document(doc).unwrap();
     let mut s = aobake::Settings {
-        size: aobake::unwrap::AtlasSize::Resolution(res as u32),
+        size: aobake::atlas::AtlasSize::Resolution(res as u32),
         rays: refs as u32,
         progress: false,
         ..Default::default()
     };
     s.fill_inside = false;
-    let p = pipeline::prepare(&sc, &s).unwrap();
-    let reference = pipeline::bake_prepared(&p, &s).unwrap().bake;
+    let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
+    let reference = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+        .unwrap()
+        .bake;
     let mut f = s.clone();
     f.method = Method::Filtered;
-    f.filter = FilterOptions {
+    f.filter = ShearedOptions {
         sparse_rays: k as u32,
         gather_radius: r as f32,
-        ..FilterOptions::default()
+        ..ShearedOptions::default()
     };
-    let out = pipeline::bake_prepared(&p, &f).unwrap();
+    let out = pipeline::bake_prepared(&p, &f, &mut StageTimer::new()).unwrap();
     let st = out.filter_stats.unwrap();
     let mut idx: Vec<usize> = (0..p.receivers.len()).collect();
     idx.sort_by(|&i, &j| {
@@ -36,13 +41,11 @@ fn main() {
         e(j).total_cmp(&e(i))
     });
     let space = &p.geometry.space;
-    let fs = aobake::filter::FilterSettings {
-        sparse_rays: k as u32,
-        gather_radius: r as f32,
+    let params = aobake::bake::BakeParams {
         max_distance: p.max_distance,
-        ..Default::default()
+        seed: s.seed,
     };
-    let samples = aobake::filter::sparse_pass(&p.receivers, &p.tracer, &fs);
+    let samples = aobake::bake::sheared::sparse_pass(&p.receivers, &p.tracer, &f.filter, &params);
     let kk = k as usize;
     for &i in idx.iter().take(12) {
         let fp = p.receivers.footprint[i];
@@ -69,7 +72,14 @@ fn main() {
             })
             .collect();
         if std::env::var("CELLS").is_ok() {
-            let cells = aobake::filter::cell_estimates(&p.receivers, &samples, &p.tracer, &fs, i);
+            let cells = aobake::bake::sheared::cell_estimates(
+                &p.receivers,
+                &samples,
+                &p.tracer,
+                &f.filter,
+                &params,
+                i,
+            );
             let nz: Vec<String> = cells
                 .iter()
                 .enumerate()

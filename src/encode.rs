@@ -7,10 +7,10 @@
 //! shOffset[i]`; c0..c3 = T0.rgba, c4..c7 = T1.rgba, c8 = T2.r). Optionally a
 //! float EXR with channels `ao`, `sh0`..`sh8`.
 
-use crate::dilate::NONE;
+use crate::atlas::Receivers;
+use crate::atlas::dilate::NONE;
+use crate::bake::Bake;
 use crate::error::{Error, Result};
-use crate::mc::Bake;
-use crate::rasterize::Receivers;
 use crate::sh::SH_COUNT;
 use image::ImageEncoder;
 use std::path::Path;
@@ -184,40 +184,15 @@ pub fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
         .map_err(|e| crate::error::Error::Encode(format!("{}: {e}", path.display())))
 }
 
-/// Writes the filter's diagnostic maps into `dir` as greyscale PNGs (gutters
-/// black): `brute_force_fraction.png` (share of each texel's cells
-/// brute-forced, white = all; the paper's Figure 7a inset), `z_min.png`
-/// (nearest occluder, black = contact, white = none within the max
-/// distance), `neighbours.png` (neighbours that lent rays, white = the most
-/// of any texel) and `sparse_ao.png` (AO of the texel's own sparse rays).
-pub fn write_debug_maps(
-    dir: &Path,
-    receivers: &Receivers,
-    stats: &crate::filter::FilterStats,
-    max_distance: f32,
-) -> Result<()> {
+/// Writes per-receiver diagnostic maps into `dir`, each as `NAME.png`
+/// ([`grey_map`]: values in [0, 1], white = 1, gutters black). Each method
+/// says what its maps show (for the filtered method,
+/// [`crate::bake::sheared::FilterStats::debug_maps`]).
+pub fn write_grey_maps(dir: &Path, receivers: &Receivers, maps: &[(&str, Vec<f32>)]) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let max_neighbours = stats.neighbours.iter().copied().max().unwrap_or(1).max(1) as f32;
-    type Map<'a> = (&'a str, Box<dyn Fn(usize) -> f32 + 'a>);
-    let maps: [Map; 4] = [
-        (
-            "brute_force_fraction.png",
-            Box::new(|r| stats.brute_fraction[r]),
-        ),
-        (
-            "z_min.png",
-            Box::new(|r| (stats.z_min[r] / max_distance).min(1.0)),
-        ),
-        (
-            "neighbours.png",
-            Box::new(|r| stats.neighbours[r] as f32 / max_neighbours),
-        ),
-        ("sparse_ao.png", Box::new(|r| stats.sparse_ao[r])),
-    ];
-    for (name, value) in maps {
-        let bytes = grey_map(receivers, value)?;
-        let path = dir.join(name);
-        std::fs::write(&path, bytes).map_err(|e| Error::io(&path, e))?;
+    for (name, values) in maps {
+        let bytes = grey_map(receivers, |r| values[r])?;
+        crate::file::write_atomic(&dir.join(format!("{name}.png")), &bytes)?;
     }
     Ok(())
 }

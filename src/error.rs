@@ -31,9 +31,16 @@ pub enum Error {
     /// A limit that protects the machine was exceeded.
     #[error("limit exceeded: {0}")]
     Limit(String),
-    /// Bad command-line or library options.
-    #[error("invalid option: {0}")]
-    Option(String),
+    /// A setting out of range, or one that contradicts another. `setting`
+    /// is the library's name for it (a field of [`crate::Settings`] or
+    /// [`crate::report::ReportSettings`], such as `sparse_rays`); the
+    /// command line shows its flag instead (`--sparse-rays`). `detail`
+    /// follows the name, separator included (see [`Error::option`]).
+    #[error("invalid option: {setting}{detail}")]
+    Option {
+        setting: &'static str,
+        detail: String,
+    },
     /// The UV unwrapper failed.
     #[error("UV unwrap failed: {0}")]
     Unwrap(String),
@@ -43,6 +50,32 @@ pub enum Error {
 }
 
 impl Error {
+    /// A bad value of `setting`: `message` reads on from its name
+    /// ("0 is outside 1..=1024", "must be at least 1").
+    pub(crate) fn option(setting: &'static str, message: impl std::fmt::Display) -> Self {
+        Error::Option {
+            setting,
+            detail: format!(" {message}"),
+        }
+    }
+
+    /// A bad `item` of list-valued `setting` (`setting: 'item': why`).
+    pub(crate) fn option_item(setting: &'static str, item: &str, why: &str) -> Self {
+        Error::Option {
+            setting,
+            detail: format!(": '{item}': {why}"),
+        }
+    }
+
+    /// A setting that cannot work with the input or with another setting
+    /// (`setting: why`).
+    pub(crate) fn option_conflict(setting: &'static str, why: impl std::fmt::Display) -> Self {
+        Error::Option {
+            setting,
+            detail: format!(": {why}"),
+        }
+    }
+
     pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),

@@ -1,30 +1,37 @@
 //! aobake: bakes ambient occlusion and 9-coefficient spherical-harmonic
 //! directional occlusion into lightmaps and writes them back into glTF.
 //!
-//! The pipeline has one module per stage, in order:
-//! [`load`] -> [`unwrap`] -> [`rasterize`] -> [`trace`] -> [`validity`] ->
-//! [`mc`] or [`filter`] (with [`sample`] and [`sh`]) -> [`dilate`] ->
-//! [`encode`] -> [`write`](mod@write); [`pipeline`] runs them. [`report`]
-//! (with [`metrics`] and [`plot`]) measures error against run time. See the
-//! README for the output format.
+//! The folders are the pipeline, in order ([`pipeline`] runs them):
+//!
+//! | stage | module | in -> out |
+//! |---|---|---|
+//! | load | [`gltf`] | a `.glb`/`.gltf` -> [`gltf::Scene`], then bake-space geometry |
+//! | atlas | [`atlas`] | receiver meshes -> [`atlas::Atlas`] and [`atlas::Receivers`] |
+//! | trace | [`trace`] | occluder triangles -> a BVH ([`trace::Tracer`]) |
+//! | bake | [`bake`] | receivers + tracer -> [`bake::Bake`] (AO and SH per receiver) |
+//! | encode | [`encode`] | bake + dilation map -> lightmap PNGs (and EXR) |
+//! | write | [`gltf::write`] | scene + atlas + PNGs -> the output GLB |
+//! | report | [`report`] | a scene -> error against time for each method |
+//!
+//! Beneath them, used by the stages and using none: [`sample`] (Sobol
+//! points, cells, frames), [`sh`] (the SH basis), [`stage`] (timer and
+//! progress bars), [`file`] (atomic writes), [`error`]. [`settings`] is
+//! what a bake is told. See the README for the output format.
 
-pub mod dilate;
+pub mod atlas;
+pub mod bake;
 pub mod encode;
 pub mod error;
-pub mod filter;
-pub mod load;
-pub mod mc;
-pub mod metrics;
+pub mod file;
+pub mod gltf;
 pub mod pipeline;
-pub mod plot;
-pub mod rasterize;
 pub mod report;
 pub mod sample;
+pub mod settings;
 pub mod sh;
+pub mod stage;
 pub mod trace;
-pub mod unwrap;
-pub mod validity;
-pub mod write;
 
 pub use error::{Error, Result};
-pub use pipeline::{Method, Report, Settings, UvSource, bake_file, bake_scene, run};
+pub use pipeline::{Report, bake_file, bake_scene, run};
+pub use settings::{Method, Settings, UvSource};

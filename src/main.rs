@@ -1,11 +1,37 @@
 //! The `aobake` command line.
 
-use aobake::pipeline::{self, FilterOptions, Method, Settings, UvSource};
-use aobake::unwrap::{AtlasSize, Packing};
-use aobake::write::OcclusionMode;
+use aobake::atlas::{AtlasSize, Packing};
+use aobake::gltf::write::OcclusionMode;
+use aobake::report::ReportSettings;
+use aobake::stage::StageTimer;
+use aobake::{Method, Settings, UvSource};
 use clap::{Parser, ValueEnum};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::LazyLock;
+
+/// The library's defaults, which the flags show and fall back to.
+static DEFAULTS: LazyLock<Settings> = LazyLock::new(Settings::default);
+static REPORT_DEFAULTS: LazyLock<ReportSettings> = LazyLock::new(ReportSettings::default);
+
+/// The flag of a library setting (errors name settings by their field).
+fn flag(setting: &str) -> String {
+    match setting {
+        "omega_v_max" => "--omega-v".into(),
+        "output" => "OUTPUT".into(),
+        s => format!("--{}", s.replace('_', "-")),
+    }
+}
+
+/// An error as the command line says it: settings named by their flags.
+fn cli_error(e: anyhow::Error) -> String {
+    match e.downcast_ref::<aobake::Error>() {
+        Some(aobake::Error::Option { setting, detail }) => {
+            format!("invalid option: {}{detail}", flag(setting))
+        }
+        _ => e.to_string(),
+    }
+}
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum MethodArg {
@@ -39,6 +65,33 @@ enum OcclusionArg {
     Replace,
 }
 
+impl From<Method> for MethodArg {
+    fn from(m: Method) -> Self {
+        match m {
+            Method::Mc => MethodArg::Mc,
+            Method::Filtered => MethodArg::Filtered,
+        }
+    }
+}
+
+impl From<Packing> for PackingArg {
+    fn from(p: Packing) -> Self {
+        match p {
+            Packing::Fast => PackingArg::Fast,
+            Packing::Shape => PackingArg::Shape,
+        }
+    }
+}
+
+impl From<OcclusionMode> for OcclusionArg {
+    fn from(o: OcclusionMode) -> Self {
+        match o {
+            OcclusionMode::Keep => OcclusionArg::Keep,
+            OcclusionMode::Replace => OcclusionArg::Replace,
+        }
+    }
+}
+
 /// Bake ambient occlusion and SH9 directional occlusion lightmaps into a glTF file.
 #[derive(Parser, Debug)]
 #[command(
@@ -53,28 +106,28 @@ struct Cli {
     /// Output .glb (written atomically; never the input).
     output: PathBuf,
     /// Atlas page edge in texels (the densest fit on one page).
-    #[arg(long, default_value_t = 1024, conflicts_with = "texel_density")]
+    #[arg(long, default_value_t = aobake::settings::DEFAULT_RESOLUTION, conflicts_with = "texel_density")]
     resolution: u32,
     /// Texels per world unit instead of a fixed page size.
     #[arg(long)]
     texel_density: Option<f64>,
     /// Rays per texel of the Monte Carlo method.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = DEFAULTS.rays)]
     rays: u32,
     /// Filtered: sparse rays per texel shared with the neighbours.
-    #[arg(long, default_value_t = FilterOptions::default().sparse_rays)]
+    #[arg(long, default_value_t = DEFAULTS.filter.sparse_rays)]
     sparse_rays: u32,
     /// Filtered: neighbour gather radius in texels.
-    #[arg(long, default_value_t = FilterOptions::default().gather_radius)]
+    #[arg(long, default_value_t = DEFAULTS.filter.gather_radius)]
     gather_radius: f32,
     /// Filtered: angular bandlimit Omega_v^max (larger: sharper, more brute force).
-    #[arg(long, default_value_t = FilterOptions::default().omega_v_max)]
+    #[arg(long, default_value_t = DEFAULTS.filter.omega_v_max)]
     omega_v: f32,
     /// Filtered: brute-force rays per hemisphere cell the filter cannot serve.
-    #[arg(long, default_value_t = FilterOptions::default().cell_rays)]
+    #[arg(long, default_value_t = DEFAULTS.filter.cell_rays)]
     cell_rays: u32,
     /// Filtered: cells with less filter weight (about that many samples) are brute-forced.
-    #[arg(long, default_value_t = FilterOptions::default().min_weight)]
+    #[arg(long, default_value_t = DEFAULTS.filter.min_weight)]
     min_weight: f32,
     /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.
     #[arg(long)]
@@ -83,13 +136,13 @@ struct Cli {
     #[arg(long)]
     max_distance: Option<f64>,
     /// Baking method.
-    #[arg(long, value_enum, default_value_t = MethodArg::Mc)]
+    #[arg(long, value_enum, default_value_t = MethodArg::from(DEFAULTS.method))]
     method: MethodArg,
     /// Random seed (same seed, same output, any thread count).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = DEFAULTS.seed)]
     seed: u64,
     /// Empty texels around each chart.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = DEFAULTS.padding)]
     padding: u32,
     /// Lightmap UVs: generate new ones, or reuse an existing set.
     #[arg(long, value_enum, default_value_t = UvArg::Generate)]
@@ -98,10 +151,10 @@ struct Cli {
     #[arg(long, default_value_t = 1)]
     uv_set: usize,
     /// Chart packing.
-    #[arg(long, value_enum, default_value_t = PackingArg::Fast)]
+    #[arg(long, value_enum, default_value_t = PackingArg::from(DEFAULTS.packing))]
     packing: PackingArg,
     /// What to do with materials that already have an occlusionTexture.
-    #[arg(long, value_enum, default_value_t = OcclusionArg::Keep)]
+    #[arg(long, value_enum, default_value_t = OcclusionArg::from(DEFAULTS.occlusion))]
     occlusion: OcclusionArg,
     /// Also write float EXR lightmaps into this directory.
     #[arg(long)]
@@ -134,22 +187,22 @@ struct ReportCli {
     #[arg(long, default_value = "aobake-report")]
     out: PathBuf,
     /// Atlas page edge in texels.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = REPORT_DEFAULTS.resolution)]
     resolution: u32,
     /// Rays per texel of the Monte Carlo reference.
-    #[arg(long, default_value_t = 2048)]
+    #[arg(long, default_value_t = REPORT_DEFAULTS.reference_rays)]
     reference_rays: u32,
     /// Runs: mc:RAYS and filtered:SPARSE_RAYS:GATHER_RADIUS[:CELL_RAYS[:OMEGA_V[:MIN_WEIGHT]]], comma-separated.
     #[arg(long, default_value = aobake::report::DEFAULT_BUDGETS)]
     budgets: String,
     /// Random seed of the runs (the reference uses a different one).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = REPORT_DEFAULTS.seed)]
     seed: u64,
     /// Max occluder distance in world units [default: 0.1 x scene diagonal].
     #[arg(long)]
     max_distance: Option<f64>,
     /// Monte Carlo rays of the 1e-4 / 1e4 scale-stability bakes (0: skip them).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = REPORT_DEFAULTS.stability_rays)]
     stability_rays: u32,
     /// Worker threads [default: all cores].
     #[arg(long)]
@@ -171,7 +224,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("aobake: error: {e}");
+            eprintln!("aobake: error: {}", cli_error(e));
             ExitCode::FAILURE
         }
     }
@@ -188,25 +241,20 @@ fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
 
 fn run_report(cli: &ReportCli) -> anyhow::Result<()> {
     set_threads(cli.threads)?;
-    let settings = aobake::report::ReportSettings {
+    let settings = ReportSettings {
         resolution: cli.resolution,
         reference_rays: cli.reference_rays,
         budgets: aobake::report::parse_budgets(&cli.budgets)?,
         seed: cli.seed,
         max_distance: cli.max_distance,
         stability_rays: cli.stability_rays,
-        include_defaults: true,
         progress: !cli.quiet,
+        ..ReportSettings::default()
     };
-    let start = std::time::Instant::now();
-    let scene = aobake::load::load(&cli.input)?;
-    let load_seconds = start.elapsed().as_secs_f64();
-    let sweep = aobake::report::sweep(
-        &scene,
-        &cli.input.display().to_string(),
-        load_seconds,
-        &settings,
-    )?;
+    let mut timer = StageTimer::new();
+    let scene = aobake::gltf::load(&cli.input)?;
+    timer.lap("load");
+    let sweep = aobake::report::sweep(&scene, &cli.input.display().to_string(), timer, &settings)?;
     let report = aobake::report::write_report(&sweep, &cli.out)?;
     if !cli.quiet {
         print!("{}", aobake::report::markdown(&report));
@@ -240,7 +288,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             MethodArg::Filtered => Method::Filtered,
         },
         rays: cli.rays,
-        filter: FilterOptions {
+        filter: aobake::bake::sheared::ShearedOptions {
             sparse_rays: cli.sparse_rays,
             gather_radius: cli.gather_radius,
             omega_v_max: cli.omega_v,
@@ -258,7 +306,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         progress: !cli.quiet,
         fill_inside: !cli.no_inside_fill,
     };
-    let report = pipeline::run(&cli.input, &cli.output, &settings)?;
+    let report = aobake::run(&cli.input, &cli.output, &settings)?;
     if !cli.quiet {
         for w in &report.warnings {
             eprintln!("aobake: warning: {w}");
@@ -275,7 +323,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
     }
     if let Some(path) = &cli.report {
         let text = serde_json::to_vec_pretty(&report)?;
-        aobake::write::write_atomic(path, &text)?;
+        aobake::file::write_atomic(path, &text)?;
     }
     Ok(())
 }

@@ -150,7 +150,7 @@ fn bakes(name: &str, resolution: u32) {
     }
     assert_eq!(baked, report.baked_primitives);
     // The output loads again.
-    aobake::load::load(&out).unwrap();
+    aobake::gltf::load(&out).unwrap();
     if let Some((errors, warnings)) = validate(&out) {
         let (_, in_warnings) = validate(&path).unwrap();
         assert_eq!(errors, 0, "{name}: validator errors");

@@ -19,7 +19,7 @@ fn base() -> (Value, Vec<u8>) {
 }
 
 fn pack(json: &Value, bin: &[u8]) -> Vec<u8> {
-    aobake::write::glb_bytes(json, bin)
+    aobake::gltf::container::glb_bytes(json, bin)
 }
 
 /// Byte offset of accessor `a`'s data in the BIN chunk.

@@ -247,7 +247,7 @@ fn gltf_with_external_files_bakes_into_another_directory() {
         json["buffers"][0]["byteLength"].as_u64().unwrap() as usize,
         bin.len()
     );
-    let scene = aobake::load::load(&out).expect("output loads, external files resolve");
+    let scene = aobake::gltf::load(&out).expect("output loads, external files resolve");
     assert_eq!(scene.baked_count(), 2);
 }
 
@@ -277,11 +277,11 @@ fn outputs_get_the_mode_of_a_normal_file() {
     let plain = dir.path().join("plain");
     std::fs::File::create(&plain).unwrap();
     let out = dir.path().join("out.glb");
-    aobake::write::write_atomic(&out, b"first").unwrap();
+    aobake::file::write_atomic(&out, b"first").unwrap();
     assert_eq!(mode(&out), mode(&plain));
     // Replacing a file keeps its mode.
     std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o640)).unwrap();
-    aobake::write::write_atomic(&out, b"second").unwrap();
+    aobake::file::write_atomic(&out, b"second").unwrap();
     assert_eq!(mode(&out), 0o640);
     assert_eq!(std::fs::read(&out).unwrap(), b"second");
 }

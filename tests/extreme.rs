@@ -293,7 +293,7 @@ fn zero_area_uv_triangles_in_an_existing_set_cover_nothing() {
     let (mut j, mut bin) = split(&glb(&[f], plain_nodes(1)));
     let uvs = [[0.5, 0.5], [0.5, 0.5], [1.0, 1.0], [0.0, 1.0]];
     add_texcoord1(&mut j, &mut bin, &uvs, &[0]);
-    let g = aobake::write::glb_bytes(&j, &bin);
+    let g = aobake::gltf::container::glb_bytes(&j, &bin);
     let s = aobake::Settings {
         uv: aobake::UvSource::Existing(1),
         ..settings(64, 8, None)

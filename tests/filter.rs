@@ -143,10 +143,10 @@ fn curtains_match_brute_force() {
         eprintln!("note: {} not found, test skipped", path.display());
         return;
     }
-    let sc = aobake::load::load(&path).unwrap();
+    let sc = aobake::gltf::load(&path).unwrap();
     let mc = aobake::bake_scene(&sc, &settings(1024, 64, None)).unwrap();
     let f = aobake::bake_scene(&sc, &filtered(1024, None)).unwrap();
-    let e = aobake::metrics::error_stats(&f.bake.ao, &mc.bake.ao);
+    let e = aobake::report::metrics::error_stats(&f.bake.ao, &mc.bake.ao);
     let (bias, rmse) = (e.bias, e.rmse);
     // A leak through the cloth shows as a large bright bias.
     assert!(

@@ -2,8 +2,9 @@
 //! on every bakeable scene.
 
 mod common;
-use aobake::metrics::error_stats;
+use aobake::report::metrics::error_stats;
 use aobake::report::{self, ReportSettings, parse_budgets};
+use aobake::stage::StageTimer;
 use common::*;
 use serde_json::Value;
 use std::path::Path;
@@ -27,8 +28,13 @@ fn an_open_plane_has_zero_error_in_every_run() {
         &[quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true)],
         plain_nodes(1),
     );
-    let sweep =
-        report::sweep(&scene(&g), "plane", 0.0, &small("mc:4,filtered:2:4", 32, 4)).unwrap();
+    let sweep = report::sweep(
+        &scene(&g),
+        "plane",
+        StageTimer::new(),
+        &small("mc:4,filtered:2:4", 32, 4),
+    )
+    .unwrap();
     let r = &sweep.report;
     // The two runs asked for plus the defaults of each method.
     assert_eq!(r.runs.len(), 4);
@@ -64,8 +70,13 @@ fn errors_match_an_independent_computation_and_fall_with_rays() {
     let recv = quad([0.0; 3], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true);
     let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 0.5, 0.0], true);
     let g = glb(&[recv, wall], plain_nodes(2));
-    let sweep =
-        report::sweep(&scene(&g), "wall", 0.0, &small("mc:4,mc:16,mc:64", 1024, 8)).unwrap();
+    let sweep = report::sweep(
+        &scene(&g),
+        "wall",
+        StageTimer::new(),
+        &small("mc:4,mc:16,mc:64", 1024, 8),
+    )
+    .unwrap();
     let r = &sweep.report;
     let rmse = |label: &str| r.runs.iter().find(|x| x.label == label).unwrap().ao.rmse;
     // Stratified Monte Carlo error falls at least as 1/sqrt(rays).
@@ -203,14 +214,15 @@ fn report_works_on_every_bakeable_shared_scene() {
     ];
     for (name, resolution) in scenes {
         let start = std::time::Instant::now();
-        let scene = aobake::load::load(&shared.join(name)).unwrap();
+        let scene = aobake::gltf::load(&shared.join(name)).unwrap();
         let s = ReportSettings {
             resolution,
             include_defaults: false,
             stability_rays: if resolution <= 256 { 4 } else { 0 },
             ..small("mc:4,filtered:4:2", 16, 0)
         };
-        let sweep = report::sweep(&scene, name, 0.0, &s).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let sweep = report::sweep(&scene, name, StageTimer::new(), &s)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
         let dir = tempfile::tempdir().unwrap();
         let r = report::write_report(&sweep, dir.path()).unwrap();
         assert_eq!(r.runs.len(), 2);

@@ -6,10 +6,10 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let base = std::path::Path::new("/nonexistent-aobake-fuzz");
-    let Ok(doc) = aobake::load::container::parse(data, base) else {
+    let Ok(doc) = aobake::gltf::container::parse(data, base) else {
         return;
     };
-    let Ok(scene) = aobake::load::Scene::from_document(doc) else {
+    let Ok(scene) = aobake::gltf::Scene::from_document(doc) else {
         return;
     };
     // Keep each run short: small scenes only.
@@ -19,7 +19,7 @@ fuzz_target!(|data: &[u8]| {
     }
     for method in [aobake::Method::Mc, aobake::Method::Filtered] {
         let settings = aobake::Settings {
-            size: aobake::unwrap::AtlasSize::Resolution(16),
+            size: aobake::atlas::AtlasSize::Resolution(16),
             method,
             rays: 2,
             progress: false,

@@ -108,7 +108,7 @@ pub fn glb(meshes: &[MeshSpec], nodes: Vec<Value>) -> Vec<u8> {
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],
     });
-    aobake::write::glb_bytes(&doc, &bin)
+    aobake::gltf::container::glb_bytes(&doc, &bin)
 }
 
 /// One node per mesh, untransformed.
@@ -116,15 +116,15 @@ pub fn plain_nodes(n: usize) -> Vec<Value> {
     (0..n).map(|i| json!({"mesh": i})).collect()
 }
 
-pub fn scene(bytes: &[u8]) -> aobake::load::Scene {
-    let doc = aobake::load::container::parse(bytes, std::path::Path::new(".")).expect("parses");
-    aobake::load::Scene::from_document(doc).expect("loads")
+pub fn scene(bytes: &[u8]) -> aobake::gltf::Scene {
+    let doc = aobake::gltf::container::parse(bytes, std::path::Path::new(".")).expect("parses");
+    aobake::gltf::Scene::from_document(doc).expect("loads")
 }
 
 /// Settings for small, quick test bakes.
 pub fn settings(resolution: u32, rays: u32, max_distance: Option<f64>) -> aobake::Settings {
     aobake::Settings {
-        size: aobake::unwrap::AtlasSize::Resolution(resolution),
+        size: aobake::atlas::AtlasSize::Resolution(resolution),
         method: aobake::Method::Mc,
         rays,
         max_distance,

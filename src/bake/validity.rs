@@ -14,8 +14,8 @@
 //! [`VALIDITY_PROBE`] a receiver that saw no back face stops, so texels in
 //! the open cost a few rays.
 
-use crate::mc::ReceiverRays;
-use crate::rasterize::Receivers;
+use super::ReceiverRays;
+use crate::atlas::Receivers;
 use crate::trace::Tracer;
 use rayon::prelude::*;
 

@@ -1,13 +1,12 @@
-//! Plots of a [`SweepReport`]: AO error against end-to-end seconds, log-log,
-//! one curve per method, with the equal-error comparison marked.
+//! Log-log plots of error against time: one curve per method, the best
+//! error reached at each cost, with an equal-error target marked.
 //!
-//! In: a [`SweepReport`]. Out: the plot as SVG text and as PNG bytes
+//! In: a [`Plot`] of plain curves (seconds, error, label), knowing nothing
+//! of methods or reports. Out: the plot as SVG text and as PNG bytes
 //! (plotters; the PNG's text uses the embedded DejaVu Sans, so no system
 //! font is needed).
 
 use crate::error::{Error, Result};
-use crate::pipeline::Method;
-use crate::report::{SweepReport, TARGET_RAYS};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::sync::Once;
@@ -30,20 +29,50 @@ fn plot_error<E: std::fmt::Debug>(e: E) -> Error {
     Error::Limit(format!("cannot draw the plot: {e:?}"))
 }
 
-/// (seconds, AO RMSE, label) of a method's runs, cheapest first.
-fn points(r: &SweepReport, m: Method) -> Vec<(f64, f64, String)> {
-    let mut p: Vec<(f64, f64, String)> = r
-        .runs
+/// One method's runs.
+#[derive(Clone, Debug)]
+pub struct Curve {
+    pub legend: String,
+    /// (seconds, error, label) of each run.
+    pub points: Vec<(f64, f64, String)>,
+    /// Seconds at which the curve reaches the target, if it does.
+    pub crossing: Option<f64>,
+}
+
+/// An error level every curve is compared at, drawn dashed.
+#[derive(Clone, Debug)]
+pub struct Target {
+    pub error: f64,
+    pub legend: String,
+}
+
+/// What is drawn.
+#[derive(Clone, Debug)]
+pub struct Plot {
+    pub title: String,
+    pub x_desc: String,
+    pub y_desc: String,
+    /// Coloured in order from [`PALETTE`].
+    pub curves: Vec<Curve>,
+    pub target: Option<Target>,
+}
+
+/// Curve colours, in order.
+pub const PALETTE: [RGBColor; 4] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+];
+
+/// A curve's finite points, cheapest first.
+fn points(c: &Curve) -> Vec<(f64, f64, String)> {
+    let mut p: Vec<(f64, f64, String)> = c
+        .points
         .iter()
-        .filter(|x| x.method == m && x.end_to_end_seconds.is_finite() && x.ao.rmse.is_finite())
+        .filter(|x| x.0.is_finite() && x.1.is_finite())
         // Log axes: an exact run (open scenes) sits on the floor.
-        .map(|x| {
-            (
-                x.end_to_end_seconds.max(MIN_PLOTTED),
-                x.ao.rmse.max(MIN_PLOTTED),
-                x.label.clone(),
-            )
-        })
+        .map(|x| (x.0.max(MIN_PLOTTED), x.1.max(MIN_PLOTTED), x.2.clone()))
         .collect();
     p.sort_by(|a, b| a.0.total_cmp(&b.0));
     p
@@ -62,14 +91,13 @@ fn envelope(p: &[(f64, f64, String)]) -> Vec<(f64, f64)> {
     out
 }
 
-fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, r: &SweepReport) -> Result<()>
+fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, plot: &Plot) -> Result<()>
 where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(plot_error)?;
-    let mc = points(r, Method::Mc);
-    let filtered = points(r, Method::Filtered);
-    let all: Vec<&(f64, f64, String)> = mc.iter().chain(&filtered).collect();
+    let curves: Vec<Vec<(f64, f64, String)>> = plot.curves.iter().map(points).collect();
+    let all: Vec<&(f64, f64, String)> = curves.iter().flatten().collect();
     if all.is_empty() {
         return Err(Error::Limit(
             "no run with positive time and error to plot".into(),
@@ -82,22 +110,13 @@ where
         e0 = e0.min(p.1);
         e1 = e1.max(p.1);
     }
-    if let Some(e) = &r.equal_error {
-        e0 = e0.min(e.target_ao_rmse.max(MIN_PLOTTED));
-        e1 = e1.max(e.target_ao_rmse);
+    if let Some(target) = &plot.target {
+        e0 = e0.min(target.error.max(MIN_PLOTTED));
+        e1 = e1.max(target.error);
     }
     let (t0, t1, e0, e1) = (t0 / 1.3, t1 * 1.3, e0 / 1.3, e1 * 1.3);
-    let name = std::path::Path::new(&r.input)
-        .file_name()
-        .map_or(r.input.clone(), |n| n.to_string_lossy().into_owned());
     let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!(
-                "{name}: AO error vs end-to-end time ({} texels, {} cores)",
-                r.texels, r.cores
-            ),
-            (FONT, 20),
-        )
+        .caption(&plot.title, (FONT, 20))
         .margin(15)
         .x_label_area_size(45)
         .y_label_area_size(70)
@@ -105,30 +124,22 @@ where
         .map_err(plot_error)?;
     chart
         .configure_mesh()
-        .x_desc("end-to-end seconds (log)")
-        .y_desc(format!(
-            "AO RMSE vs {}-ray reference (log)",
-            r.reference_rays
-        ))
+        .x_desc(&plot.x_desc)
+        .y_desc(&plot.y_desc)
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 15))
         .y_label_formatter(&|v| format!("{v:.4}"))
         .x_label_formatter(&|v| format!("{v:.1}"))
         .draw()
         .map_err(plot_error)?;
-    let blue = RGBColor(31, 119, 180);
-    let orange = RGBColor(214, 39, 40);
-    for (pts, colour, label) in [
-        (&mc, blue, "Monte Carlo (rays per texel)"),
-        (&filtered, orange, "filtered (sparse rays : gather radius)"),
-    ] {
+    for ((curve, pts), &colour) in plot.curves.iter().zip(&curves).zip(PALETTE.iter().cycle()) {
         if pts.is_empty() {
             continue;
         }
         chart
             .draw_series(LineSeries::new(envelope(pts), colour.stroke_width(2)))
             .map_err(plot_error)?
-            .label(label)
+            .label(&curve.legend)
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
             });
@@ -140,43 +151,28 @@ where
             .map_err(plot_error)?;
         chart
             .draw_series(pts.iter().map(|(t, e, l)| {
-                let short = l.trim_start_matches("mc:").trim_start_matches("filtered:");
                 EmptyElement::at((*t, *e))
-                    + Text::new(
-                        short.to_string(),
-                        (6, 4),
-                        (FONT, 12).into_font().color(&colour),
-                    )
+                    + Text::new(l.clone(), (6, 4), (FONT, 12).into_font().color(&colour))
             }))
             .map_err(plot_error)?;
     }
-    if let Some(e) = &r.equal_error {
+    if let Some(target) = &plot.target {
         let grey = RGBColor(90, 90, 90);
-        let label = match e.speedup {
-            Some(x) => format!(
-                "MC-{TARGET_RAYS} error {:.4}: filtered {x:.2}x as fast",
-                e.target_ao_rmse
-            ),
-            None => format!(
-                "MC-{TARGET_RAYS} error {:.4}: not reached by filtered",
-                e.target_ao_rmse
-            ),
-        };
         chart
             .draw_series(DashedLineSeries::new(
-                [(t0, e.target_ao_rmse), (t1, e.target_ao_rmse)],
+                [(t0, target.error), (t1, target.error)],
                 6,
                 4,
                 grey.stroke_width(1),
             ))
             .map_err(plot_error)?
-            .label(label)
+            .label(&target.legend)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey));
-        for (secs, colour) in [(e.mc_seconds, blue), (e.filtered_seconds, orange)] {
-            if let Some(t) = secs {
+        for (curve, &colour) in plot.curves.iter().zip(PALETTE.iter().cycle()) {
+            if let Some(t) = curve.crossing {
                 chart
                     .draw_series(std::iter::once(Cross::new(
-                        (t, e.target_ao_rmse),
+                        (t, target.error),
                         8,
                         colour.stroke_width(3),
                     )))
@@ -196,8 +192,8 @@ where
     Ok(())
 }
 
-/// The error-vs-time plot as SVG text and PNG bytes.
-pub fn error_vs_time(r: &SweepReport) -> Result<(String, Vec<u8>)> {
+/// The plot as SVG text and PNG bytes.
+pub fn error_vs_time(r: &Plot) -> Result<(String, Vec<u8>)> {
     register_font();
     let mut svg = String::new();
     draw(

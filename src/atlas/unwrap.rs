@@ -8,7 +8,7 @@
 //! swapped.
 
 use crate::error::{Error, Result};
-use crate::load::{ReceiverMesh, Scene, accessor};
+use crate::gltf::{ReceiverMesh, Scene, accessor};
 use std::collections::HashMap;
 
 /// Largest atlas edge in texels (a 16k x 16k page with SH is ~6 GiB of floats).
@@ -62,7 +62,24 @@ pub struct Atlas {
     pub meshes: Vec<ChartedMesh>,
 }
 
-/// Unwraps all receiver meshes into one page. `diagonal` converts a world
+/// Checks an atlas size: a resolution in 16..=[`MAX_ATLAS_EDGE`], a
+/// finite positive texel density.
+pub fn check_size(size: AtlasSize) -> Result<()> {
+    match size {
+        AtlasSize::Resolution(r) if !(16..=MAX_ATLAS_EDGE).contains(&r) => Err(Error::option(
+            "resolution",
+            format!("{r} is outside 16..={MAX_ATLAS_EDGE}"),
+        )),
+        AtlasSize::TexelDensity(t) if !(t.is_finite() && t > 0.0) => Err(Error::option(
+            "texel_density",
+            format!("{t} must be finite and > 0"),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Unwraps all receiver meshes into one page (its size must have passed
+/// [`check_size`]). `diagonal` converts a world
 /// texel density into bake space.
 pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -> Result<Atlas> {
     unwrap_with_progress(meshes, options, diagonal, &|_, _, _| {})
@@ -76,20 +93,14 @@ pub fn unwrap_with_progress(
     progress: &(dyn Fn(&'static str, usize, Option<usize>) + Sync),
 ) -> Result<Atlas> {
     let density = match options.size {
-        AtlasSize::Resolution(r) => {
-            if !(16..=MAX_ATLAS_EDGE).contains(&r) {
-                return Err(Error::Option(format!(
-                    "--resolution {r} is outside 16..={MAX_ATLAS_EDGE}"
-                )));
-            }
-            uvunwrap::Density::Auto { page_size: r }
-        }
+        AtlasSize::Resolution(r) => uvunwrap::Density::Auto { page_size: r },
         AtlasSize::TexelDensity(t) => {
             let tpu = t * diagonal;
             if !(tpu.is_finite() && tpu > 0.0) {
-                return Err(Error::Option(format!(
-                    "--texel-density {t} must be finite and > 0"
-                )));
+                return Err(Error::option(
+                    "texel_density",
+                    format!("{t} is too large for this scene ({tpu} texels per bake unit)"),
+                ));
             }
             uvunwrap::Density::Fixed {
                 texels_per_unit: tpu as f32,
@@ -123,13 +134,13 @@ pub fn unwrap_with_progress(
     .map_err(|e| Error::Unwrap(e.to_string()))?;
     if atlas.page_count > 1 {
         return Err(Error::Limit(format!(
-            "the {} charts cannot share one atlas page with padding {} (they need {} pages); raise --resolution or lower --padding",
+            "the {} charts cannot share one atlas page with padding {} (they need {} pages); raise the resolution or lower the padding",
             atlas.chart_count, options.padding, atlas.page_count
         )));
     }
     if atlas.width > MAX_ATLAS_EDGE || atlas.height > MAX_ATLAS_EDGE {
         return Err(Error::Limit(format!(
-            "the atlas would be {}x{} texels, more than the {MAX_ATLAS_EDGE} limit; lower --texel-density",
+            "the atlas would be {}x{} texels, more than the {MAX_ATLAS_EDGE} limit; lower the texel density",
             atlas.width, atlas.height
         )));
     }
@@ -161,11 +172,6 @@ pub fn existing(
     set: usize,
     resolution: u32,
 ) -> Result<Atlas> {
-    if !(16..=MAX_ATLAS_EDGE).contains(&resolution) {
-        return Err(Error::Option(format!(
-            "--resolution {resolution} is outside 16..={MAX_ATLAS_EDGE}"
-        )));
-    }
     let mut placements: HashMap<usize, usize> = HashMap::new();
     for m in meshes {
         *placements
@@ -175,18 +181,19 @@ pub fn existing(
     let mut out = Vec::with_capacity(meshes.len());
     for m in meshes {
         let g = &scene.geometries[scene.instances[m.instance].geometry];
-        let what = format!("meshes[{}].primitives[{}]", g.mesh, g.primitive);
+        let what = g.label();
         if placements[&scene.instances[m.instance].geometry] > 1 {
-            return Err(Error::Option(format!(
-                "{what} is placed by several nodes, which would share one lightmap region; use generated UVs (--uv generate)"
-            )));
+            return Err(Error::option_conflict(
+                "uv",
+                format!(
+                    "{what} is placed by several nodes, which would share one lightmap region; use generated UVs"
+                ),
+            ));
         }
         let prim = &scene.doc.json["meshes"][g.mesh]["primitives"][g.primitive];
         let acc = prim["attributes"][format!("TEXCOORD_{set}")]
             .as_u64()
-            .ok_or_else(|| {
-                Error::Option(format!("{what} has no TEXCOORD_{set} for --uv existing"))
-            })?;
+            .ok_or_else(|| Error::option_conflict("uv", format!("{what} has no TEXCOORD_{set}")))?;
         let uv = accessor::read(&scene.doc, acc as usize)?.to_f32::<2>(&what)?;
         if uv.len() != m.positions.len() {
             return Err(Error::Invalid(format!(
@@ -199,7 +206,7 @@ pub fn existing(
             .find(|(_, p)| !p.iter().all(|c| c.is_finite() && (0.0..=1.0).contains(c)))
         {
             return Err(Error::Invalid(format!(
-                "{what}: TEXCOORD_{set} vertex {v} is ({}, {}), outside [0, 1]; --uv existing needs a lightmap UV set inside the unit square",
+                "{what}: TEXCOORD_{set} vertex {v} is ({}, {}), outside [0, 1]; an existing lightmap UV set must lie inside the unit square",
                 p[0], p[1]
             )));
         }

@@ -10,8 +10,8 @@
 //! a point, the closest point of that triangle, so chart edges never go
 //! black. A texel whose centre lies inside a triangle always takes that one.
 
-use crate::load::ReceiverMesh;
-use crate::unwrap::Atlas;
+use super::unwrap::Atlas;
+use crate::gltf::ReceiverMesh;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 

@@ -1,8 +1,8 @@
-//! Write: the input document plus the bake, as a GLB, atomically.
+//! Write-back: the input document plus the bake, as GLB bytes.
 //!
 //! In: the loaded [`Scene`], its [`BakeGeometry`] and [`Atlas`], and the
-//! [`Encoded`] images. Out: GLB bytes, then a file written through a
-//! temporary file and a rename. The document is edited as
+//! [`Encoded`] images. Out: the GLB bytes, serialized once (the pipeline
+//! writes them with [`crate::file::write_atomic`]). The document is edited as
 //! `serde_json::Value`, so every field of the input survives except the
 //! documented edits:
 //! - each baked primitive: attributes re-indexed through the unwrapper's
@@ -15,15 +15,15 @@
 //!   sampler are appended; the root gains `extensions.AOBAKE_lightmap` and
 //!   the name in `extensionsUsed`.
 
+use super::accessor::{self, Component, RawAccessor, array};
+use super::container::{Document, glb_bytes, percent_decode};
+use super::scene::{BakeGeometry, Scene};
+use crate::atlas::Atlas;
 use crate::encode::Encoded;
 use crate::error::{Error, Result};
-use crate::load::accessor::{self, Component, RawAccessor, array};
-use crate::load::{BakeGeometry, Scene};
-use crate::unwrap::Atlas;
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The extension name written to primitives and the root.
 pub const EXTENSION: &str = "AOBAKE_lightmap";
@@ -210,6 +210,10 @@ pub struct OutputOptions {
     pub occlusion: OcclusionMode,
     /// Bake into this existing TEXCOORD set instead of a generated one.
     pub existing_uv: Option<usize>,
+    /// The directory the GLB will be written to: relative URIs of external
+    /// buffers and images are rewritten to resolve from there. `None`:
+    /// they stay relative to the input's directory.
+    pub output_dir: Option<PathBuf>,
 }
 
 /// A baked primitive's new JSON, before it is placed into a mesh.
@@ -291,7 +295,7 @@ pub fn build_glb(
         let inst = &scene.instances[rm.instance];
         let g = &scene.geometries[inst.geometry];
         let charted = &atlas.meshes[k];
-        let what = format!("meshes[{}].primitives[{}]", g.mesh, g.primitive);
+        let what = g.label();
         let mut prim = doc.json["meshes"][g.mesh]["primitives"][g.primitive].clone();
         let tex_coord = match options.existing_uv {
             Some(set) => set,
@@ -341,6 +345,9 @@ pub fn build_glb(
         bin.data.push(0);
     }
     json["buffers"][0]["byteLength"] = json!(bin.data.len());
+    if let Some(to) = &options.output_dir {
+        relocate_uris(&mut json, &doc.base_dir, to)?;
+    }
     Ok(glb_bytes(&json, &bin.data))
 }
 
@@ -351,9 +358,9 @@ pub fn build_glb(
 fn add_lightmap_uvs(
     json: &mut Value,
     bin: &mut Bin,
-    doc: &crate::load::Document,
+    doc: &Document,
     prim: &mut Value,
-    charted: &crate::unwrap::ChartedMesh,
+    charted: &crate::atlas::unwrap::ChartedMesh,
     vertex_count: usize,
     what: &str,
     warnings: &mut Vec<String>,
@@ -577,66 +584,10 @@ pub fn relocate_uris(json: &mut Value, from_dir: &Path, to_dir: &Path) -> Result
             if uri.starts_with("data:") || uri.contains("://") || uri.starts_with('/') {
                 continue;
             }
-            let decoded = crate::load::container::percent_decode(uri);
+            let decoded = percent_decode(uri);
             let rel = relative_path(&from.join(decoded), &to);
             item["uri"] = json!(encode_uri_path(&rel.to_string_lossy()));
         }
     }
-    Ok(())
-}
-
-/// Serializes JSON and BIN into a GLB container.
-pub fn glb_bytes(json: &Value, bin: &[u8]) -> Vec<u8> {
-    let mut text = serde_json::to_vec(json).expect("JSON serializes");
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
-    let bin_len = bin.len().next_multiple_of(4);
-    let total = 12 + 8 + text.len() + if bin.is_empty() { 0 } else { 8 + bin_len };
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&text);
-    if !bin.is_empty() {
-        out.extend_from_slice(&(bin_len as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(bin);
-        out.resize(total, 0);
-    }
-    out
-}
-
-/// Splits GLB bytes written by [`glb_bytes`] back into JSON and BIN.
-pub fn split_glb(glb: &[u8]) -> (Value, Vec<u8>) {
-    let jl = u32::from_le_bytes([glb[12], glb[13], glb[14], glb[15]]) as usize;
-    let json = serde_json::from_slice(&glb[20..20 + jl]).expect("our own JSON chunk parses");
-    let bin = glb.get(28 + jl..).map(<[u8]>::to_vec).unwrap_or_default();
-    (json, bin)
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same directory
-/// and a rename: on failure nothing is left behind.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".aobake-").suffix(".tmp");
-    // The temporary file would be private (0600); the output gets the mode
-    // of the file it replaces, or a new file's usual mode (0666 less umask).
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let mode = std::fs::metadata(path).map_or(0o666, |m| m.permissions().mode() & 0o7777);
-        builder.permissions(std::fs::Permissions::from_mode(mode));
-    }
-    let mut tmp = builder.tempfile_in(dir).map_err(|e| Error::io(dir, e))?;
-    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
-    tmp.as_file().sync_all().map_err(|e| Error::io(path, e))?;
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
     Ok(())
 }

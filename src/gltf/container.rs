@@ -30,17 +30,13 @@ pub struct Document {
 /// Reads and parses a `.glb` or `.gltf` file.
 pub fn read_file(path: &Path) -> Result<Document> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let base_dir = path
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("."));
-    parse(&bytes, &base_dir)
+    parse(&bytes, crate::file::parent_dir(path))
 }
 
 /// Parses GLB or JSON bytes; `base_dir` resolves external URIs.
 pub fn parse(bytes: &[u8], base_dir: &Path) -> Result<Document> {
     let (json_bytes, bin) = if bytes.len() >= 4 && le_u32(bytes, 0) == GLB_MAGIC {
-        split_glb(bytes)?
+        glb_chunks(bytes)?
     } else if bytes
         .first()
         .is_some_and(|&b| b == b'{' || b.is_ascii_whitespace())
@@ -76,8 +72,9 @@ fn le_u32(b: &[u8], at: usize) -> u32 {
     u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
 }
 
-/// Splits a GLB into its JSON chunk and optional BIN chunk, checking every length.
-fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
+/// Splits a GLB into its JSON chunk and optional BIN chunk, checking every
+/// length: the one GLB reader ([`parse`] uses it; so can tools and tests).
+pub fn glb_chunks(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
     if bytes.len() < 12 {
         return Err(Error::Container(format!(
             "GLB truncated: {} bytes, the header alone needs 12",
@@ -132,6 +129,30 @@ fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
     }
     let json = json.ok_or_else(|| Error::Container("GLB has no JSON chunk".into()))?;
     Ok((json, bin))
+}
+
+/// Serializes JSON and BIN into a GLB container.
+pub fn glb_bytes(json: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut text = serde_json::to_vec(json).expect("JSON serializes");
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    let bin_len = bin.len().next_multiple_of(4);
+    let total = 12 + 8 + text.len() + if bin.is_empty() { 0 } else { 8 + bin_len };
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    if !bin.is_empty() {
+        out.extend_from_slice(&(bin_len as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(bin);
+        out.resize(total, 0);
+    }
+    out
 }
 
 fn check_version(json: &Value) -> Result<()> {

@@ -8,12 +8,9 @@
 //! bounding box and divided by its diagonal), where the rest of the pipeline
 //! works at unit scale whatever the file's units.
 
-pub mod accessor;
-pub mod container;
-
+use super::accessor::{self, array, field_usize};
+use super::container::{self, Document};
 use crate::error::{Error, Result};
-use accessor::{array, field_usize};
-pub use container::Document;
 use glam::{DMat3, DMat4, DQuat, DVec3, Vec3, Vec3A};
 use serde_json::Value;
 use std::collections::HashMap;
@@ -44,6 +41,18 @@ pub struct PrimitiveGeometry {
     pub morphed: bool,
     /// Its material is `doubleSided` (back faces are real surfaces).
     pub double_sided: bool,
+}
+
+/// How errors and warnings name a primitive: `meshes[m].primitives[p]`.
+pub fn primitive_label(mesh: usize, primitive: usize) -> String {
+    format!("meshes[{mesh}].primitives[{primitive}]")
+}
+
+impl PrimitiveGeometry {
+    /// [`primitive_label`] of this primitive.
+    pub fn label(&self) -> String {
+        primitive_label(self.mesh, self.primitive)
+    }
 }
 
 /// A placement of a primitive in the scene.
@@ -289,7 +298,8 @@ impl Scene {
                     warn(
                         &mut warnings,
                         format!(
-                            "meshes[{mi}].primitives[{pi}]: morph targets; occludes in its base pose but is not baked"
+                            "{}: morph targets; occludes in its base pose but is not baked",
+                            primitive_label(mi, pi)
                         ),
                     );
                 }
@@ -435,7 +445,7 @@ fn warn(warnings: &mut Vec<String>, line: String) {
 
 /// Decodes `meshes[mi].primitives[pi]`; `None` for points and lines.
 fn decode_primitive(doc: &Document, mi: usize, pi: usize) -> Result<Option<PrimitiveGeometry>> {
-    let what = format!("meshes[{mi}].primitives[{pi}]");
+    let what = primitive_label(mi, pi);
     let prim = &array(&doc.json, "meshes")[mi]["primitives"][pi];
     for ext in COMPRESSION_EXTENSIONS {
         if prim.pointer(&format!("/extensions/{ext}")).is_some() {

@@ -1,0 +1,20 @@
+//! Atlas: the lightmap page and its texels.
+//!
+//! In: the [`crate::gltf::ReceiverMesh`]es in bake space. Out: an
+//! [`Atlas`] (one page, a chart layout per receiver mesh), its
+//! [`Receivers`] (one point per covered texel, the paper's receivers), and
+//! after the bake the dilation map that fills gutters and texels inside
+//! geometry.
+//!
+//! - [`unwrap`](mod@unwrap): charts and packing (`uvunwrap`), or an
+//!   existing UV set;
+//! - [`rasterize`](mod@rasterize): covered texels into receivers,
+//!   conservative at chart edges;
+//! - [`dilate`]: every texel's nearest valid receiver.
+
+pub mod dilate;
+pub mod rasterize;
+pub mod unwrap;
+
+pub use rasterize::{Receivers, rasterize};
+pub use unwrap::{Atlas, AtlasSize, MAX_ATLAS_EDGE, Packing, UnwrapOptions};

@@ -1,0 +1,125 @@
+//! Locality: the receivers in Morton order of their texels for the
+//! passes, and the results back in the receivers' own order.
+//!
+//! In: [`Receivers`]. Out: an order (`order[new] = old`), the permuted
+//! receivers, and a [`Bake`] and [`FilterStats`] unpermuted.
+
+use super::FilterStats;
+use crate::atlas::Receivers;
+use crate::bake::Bake;
+
+/// An order of the receivers in which texels near each other in the atlas
+/// are near each other in memory (Morton order of their texel
+/// coordinates), so a receiver's world-space neighbours, which are mostly
+/// its atlas neighbours, and their samples share cache lines.
+pub fn locality_order(receivers: &Receivers) -> Vec<u32> {
+    fn spread(v: u32) -> u64 {
+        let mut x = v as u64 & 0xffff_ffff;
+        x = (x | (x << 16)) & 0x0000_ffff_0000_ffff;
+        x = (x | (x << 8)) & 0x00ff_00ff_00ff_00ff;
+        x = (x | (x << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
+        x = (x | (x << 2)) & 0x3333_3333_3333_3333;
+        (x | (x << 1)) & 0x5555_5555_5555_5555
+    }
+    let w = receivers.width.max(1);
+    let mut order: Vec<u32> = (0..receivers.len() as u32).collect();
+    order.sort_by_key(|&i| {
+        let t = receivers.texel[i as usize];
+        spread(t % w) | (spread(t / w) << 1)
+    });
+    order
+}
+
+/// The receivers in `order` (`order[new] = old`).
+pub fn permuted(receivers: &Receivers, order: &[u32]) -> Receivers {
+    let pick = |i: &u32| *i as usize;
+    Receivers {
+        texel: order.iter().map(|i| receivers.texel[pick(i)]).collect(),
+        position: order.iter().map(|i| receivers.position[pick(i)]).collect(),
+        normal: order.iter().map(|i| receivers.normal[pick(i)]).collect(),
+        geo_normal: order
+            .iter()
+            .map(|i| receivers.geo_normal[pick(i)])
+            .collect(),
+        footprint: order.iter().map(|i| receivers.footprint[pick(i)]).collect(),
+        ..receivers.clone_header()
+    }
+}
+
+/// A bake and its per-receiver statistics, from `order` back to the
+/// receivers' own order.
+pub fn unpermuted(bake: Bake, stats: FilterStats, order: &[u32]) -> (Bake, FilterStats) {
+    fn back<T: Copy + Default>(v: &[T], order: &[u32]) -> Vec<T> {
+        let mut out = vec![T::default(); v.len()];
+        for (new, &old) in order.iter().enumerate() {
+            out[old as usize] = v[new];
+        }
+        out
+    }
+    (
+        Bake {
+            ao: back(&bake.ao, order),
+            sh: back(&bake.sh, order),
+            rays: bake.rays,
+        },
+        FilterStats {
+            brute_fraction: back(&stats.brute_fraction, order),
+            z_min: back(&stats.z_min, order),
+            neighbours: back(&stats.neighbours, order),
+            sparse_ao: back(&stats.sparse_ao, order),
+            ..stats
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sh::SH_COUNT;
+    use glam::Vec3;
+
+    #[test]
+    fn locality_order_is_a_morton_permutation_and_round_trips() {
+        // A 4x4 atlas with two texels uncovered.
+        let texels: Vec<u32> = (0..16).filter(|&t| t != 5 && t != 10).collect();
+        let receivers = Receivers {
+            width: 4,
+            height: 4,
+            position: texels.iter().map(|&t| Vec3::splat(t as f32)).collect(),
+            normal: vec![Vec3::Z; texels.len()],
+            geo_normal: vec![Vec3::Z; texels.len()],
+            footprint: texels.iter().map(|&t| t as f32).collect(),
+            texel: texels,
+            ..Default::default()
+        };
+        let order = locality_order(&receivers);
+        let mut sorted = order.clone();
+        sorted.sort();
+        assert_eq!(sorted, (0..14).collect::<Vec<u32>>());
+        // Z order: (0,0) (1,0) (0,1) (1,1) (2,0) ...: texels 0 1 4 (5 missing) 2 3 6 7.
+        let local = permuted(&receivers, &order);
+        assert_eq!(&local.texel[..7], &[0, 1, 4, 2, 3, 6, 7]);
+        assert_eq!(local.footprint[2], 4.0);
+        assert_eq!((local.width, local.height), (4, 4));
+        // Results computed in that order come back to each receiver.
+        let bake = Bake {
+            ao: local.footprint.clone(),
+            sh: local.footprint.iter().map(|&f| [f; SH_COUNT]).collect(),
+            rays: 7,
+        };
+        let stats = FilterStats {
+            z_min: local.footprint.clone(),
+            neighbours: local.texel.clone(),
+            brute_fraction: local.footprint.clone(),
+            sparse_ao: local.footprint.clone(),
+            brute_rays: 3,
+            ..Default::default()
+        };
+        let (bake, stats) = unpermuted(bake, stats, &order);
+        assert_eq!(bake.ao, receivers.footprint);
+        assert_eq!(bake.sh[3], [receivers.footprint[3]; SH_COUNT]);
+        assert_eq!(stats.neighbours, receivers.texel);
+        assert_eq!(stats.z_min, receivers.footprint);
+        assert_eq!((bake.rays, stats.brute_rays), (7, 3));
+    }
+}

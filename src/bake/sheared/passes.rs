@@ -1,0 +1,176 @@
+//! The two passes over all receivers: the sparse pass (K rays per
+//! receiver, closest hits kept) and the filter pass (every receiver
+//! filtered from its neighbours' samples, in parallel).
+//!
+//! In: [`Receivers`] in locality order, a [`Tracer`], [`ShearedOptions`],
+//! [`BakeParams`]. Out: [`Samples`], then a [`Bake`] and [`FilterStats`].
+
+use super::receiver::{Pass, ReceiverResult, Scratch, filter_receiver};
+use super::{FilterStats, ShearedOptions};
+use crate::atlas::Receivers;
+use crate::bake::{Bake, BakeParams, ReceiverRays};
+use crate::error::{Error, Result};
+use crate::sample::{CELL_COUNT, square_cell};
+use crate::trace::Tracer;
+use glam::Vec3;
+use kiddo::ImmutableKdTree;
+use rayon::prelude::*;
+
+/// The receiver sequence ([`ReceiverRays::with_stream`]) of the sparse
+/// pass, which the second pass continues.
+pub(super) const SPARSE_STREAM: u64 = 1;
+
+/// The sparse pass: K samples per receiver, receiver-major.
+#[derive(Clone, Debug, Default)]
+pub struct Samples {
+    pub per_receiver: usize,
+    pub dir: Vec<Vec3>,
+    /// Cell of each direction in its own receiver's frame (exact, from the
+    /// sample's point in the square): reused by neighbours with the same
+    /// normal, hence the same frame, which is most of a flat surface.
+    pub cell: Vec<u8>,
+    /// Hit distance; `INFINITY` for a miss within [`sparse_t_max`];
+    /// negative for a direction below the geometric horizon (it enters the
+    /// receiver's own surface and says nothing about occluders).
+    pub t: Vec<f32>,
+    /// Unit geometric normal of the hit (either side; zero for a miss):
+    /// for the solid-angle Jacobian of the reprojection.
+    pub hit_normal: Vec<Vec3>,
+}
+
+/// How far sparse rays are traced: the max distance plus the widest gather
+/// reach, so an occluder within the max distance of a *receiver* is found
+/// by every neighbour whose rays it lends (the paper traces unbounded rays
+/// and applies the distance test per receiver, Section 5).
+pub fn sparse_t_max(receivers: &Receivers, s: &ShearedOptions, params: &BakeParams) -> f32 {
+    let widest = receivers.footprint.iter().copied().fold(0.0f32, f32::max);
+    params.max_distance + (s.gather_radius * widest).min(params.max_distance)
+}
+
+/// Casts the sparse rays.
+pub fn sparse_pass(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    s: &ShearedOptions,
+    params: &BakeParams,
+) -> Samples {
+    let t_max = sparse_t_max(receivers, s, params);
+    let k = s.sparse_rays as usize;
+    let n = receivers.len();
+    let mut dir = vec![Vec3::ZERO; n * k];
+    let mut t = vec![0.0f32; n * k];
+    let mut cell = vec![0u8; n * k];
+    let mut hit_normal = vec![Vec3::ZERO; n * k];
+    const CHUNK: usize = 64;
+    dir.par_chunks_mut(k * CHUNK)
+        .zip(t.par_chunks_mut(k * CHUNK))
+        .zip(cell.par_chunks_mut(k * CHUNK))
+        .zip(hit_normal.par_chunks_mut(k * CHUNK))
+        .enumerate()
+        .for_each(|(c, (((dir, t), cell), hit_normal))| {
+            for (local, (((dirs, ts), cells), normals)) in dir
+                .chunks_mut(k)
+                .zip(t.chunks_mut(k))
+                .zip(cell.chunks_mut(k))
+                .zip(hit_normal.chunks_mut(k))
+                .enumerate()
+            {
+                let r = c * CHUNK + local;
+                let rays = ReceiverRays::with_stream(receivers, r, params.seed, SPARSE_STREAM);
+                let (origin, geo) = (rays.origin, rays.geo_normal);
+                for i in 0..k {
+                    let u = rays.point(i as u32);
+                    let d = rays.direction_of(u);
+                    cells[i] = square_cell(u) as u8;
+                    dirs[i] = d;
+                    ts[i] = if d.dot(geo) <= 0.0 {
+                        -1.0
+                    } else if let Some((t, ng)) = tracer.closest_hit_normal(origin, d, t_max) {
+                        normals[i] = ng;
+                        t
+                    } else {
+                        f32::INFINITY
+                    };
+                }
+            }
+        });
+    Samples {
+        per_receiver: k,
+        dir,
+        t,
+        cell,
+        hit_normal,
+    }
+}
+
+/// The k-d tree over receiver positions that the neighbour gather queries.
+pub(super) fn receiver_tree(receivers: &Receivers) -> Result<ImmutableKdTree<f32, 3>> {
+    let points: Vec<[f32; 3]> = receivers.position.iter().map(|p| p.to_array()).collect();
+    ImmutableKdTree::<f32, 3>::new_from_slice(&points)
+        .map_err(|e| Error::Limit(format!("cannot build the receivers' k-d tree: {e}")))
+}
+
+/// Filters every receiver from the sparse samples (Algorithm 1), casting
+/// brute-force rays for the cells it marks.
+pub fn filter_pass(
+    receivers: &Receivers,
+    samples: &Samples,
+    tracer: &Tracer,
+    s: &ShearedOptions,
+    params: &BakeParams,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Bake, FilterStats)> {
+    let tree = receiver_tree(receivers)?;
+    let pass = Pass {
+        receivers,
+        samples,
+        tree: &tree,
+        tracer,
+        s,
+        params,
+    };
+    let n = receivers.len();
+    let results: Vec<ReceiverResult> = (0..n)
+        .into_par_iter()
+        .with_min_len(64)
+        .map_init(Scratch::new, |scratch, r| {
+            let out = filter_receiver(&pass, r, scratch);
+            if r % 1024 == 1023 {
+                progress(1024);
+            }
+            out
+        })
+        .collect();
+    let k = samples.per_receiver;
+    let mut stats = FilterStats {
+        sparse_rays: samples.t.iter().filter(|&&t| t >= 0.0).count() as u64,
+        ..Default::default()
+    };
+    let mut bake = Bake {
+        ao: Vec::with_capacity(n),
+        sh: Vec::with_capacity(n),
+        rays: 0,
+    };
+    for (r, res) in results.iter().enumerate() {
+        bake.ao.push(res.ao);
+        bake.sh.push(res.sh);
+        stats.brute_rays += res.brute_rays as u64;
+        stats.cells_filtered += res.filtered as u64;
+        stats.cells_brute += res.brute as u64;
+        stats.cells_contact += res.contact as u64;
+        stats.cells_no_hit += res.no_hit as u64;
+        stats.cells_open += res.open as u64;
+        stats.receivers_open += (res.open as usize == CELL_COUNT) as u64;
+        stats
+            .brute_fraction
+            .push(res.brute as f32 / CELL_COUNT as f32);
+        stats.z_min.push(res.z_min);
+        stats.neighbours.push(res.neighbours);
+        let own = &samples.t[r * k..(r + 1) * k];
+        // Sparse rays reach past the max distance: hits beyond it are visible.
+        let visible = own.iter().filter(|&&t| t > params.max_distance).count();
+        stats.sparse_ao.push(visible as f32 / k as f32);
+    }
+    bake.rays = stats.sparse_rays + stats.brute_rays;
+    Ok((bake, stats))
+}

@@ -1,0 +1,26 @@
+//! glTF in and out: the one GLB reader and writer, accessors, the scene
+//! graph, and the lossless write-back of a bake.
+//!
+//! In (reading): a `.glb`/`.gltf` path. Out: a [`Scene`] (the untouched
+//! document, each triangle primitive decoded once, every placement) and,
+//! through [`Scene::bake_geometry`], [`BakeGeometry`] in *bake space*.
+//! In (writing): the scene, its atlas and the encoded lightmaps. Out: the
+//! output GLB bytes ([`write::build_glb`]).
+//!
+//! - [`container`]: GLB chunks or JSON, buffers (BIN, `data:`, files), and
+//!   GLB serialization;
+//! - [`accessor`]: typed reads (strides, sparse, normalized, quantized);
+//! - [`scene`]: nodes, transforms, primitives, instancing, bake space;
+//! - [`write`](mod@write): the document edited as `serde_json::Value`,
+//!   images appended to BIN, URIs relocated to the output's directory.
+
+pub mod accessor;
+pub mod container;
+pub mod scene;
+pub mod write;
+
+pub use container::Document;
+pub use scene::{
+    BakeGeometry, BakeSpace, Instance, MAX_TRIANGLES, PrimitiveGeometry, ReceiverMesh, Scene, load,
+    primitive_label,
+};

@@ -1,0 +1,163 @@
+//! The files of a report directory: AO error maps in the atlas layout,
+//! the brute-force map, the error-vs-time plot, `report.md` and
+//! `report.json`.
+//!
+//! In: a [`Sweep`]. Out: the files, each written atomically, and the
+//! report with their names.
+
+use super::plot::{self, Curve, Plot, Target};
+use super::{Sweep, SweepReport, TARGET_RAYS, markdown};
+use crate::atlas::Receivers;
+use crate::error::{Error, Result};
+use crate::settings::Method;
+use std::path::Path;
+
+/// AO error map: red where `values` are darker than `reference`, green
+/// where brighter (the paper's Figure 7), full intensity at `full_scale`
+/// error; texels no receiver covers are dark grey.
+pub fn error_map_rgb(
+    receivers: &Receivers,
+    values: &[f32],
+    reference: &[f32],
+    full_scale: f32,
+) -> Vec<u8> {
+    let (w, h) = (receivers.width as usize, receivers.height as usize);
+    let mut img = vec![32u8; w * h * 3];
+    for (r, &t) in receivers.texel.iter().enumerate() {
+        let e = values[r] - reference[r];
+        let v = if e.is_finite() {
+            ((e.abs() / full_scale).min(1.0) * 255.0).round() as u8
+        } else {
+            255
+        };
+        let px = &mut img[t as usize * 3..t as usize * 3 + 3];
+        px.copy_from_slice(&if e < 0.0 { [v, 0, 0] } else { [0, v, 0] });
+    }
+    img
+}
+
+/// Full intensity of the error maps: this much AO error.
+pub const ERROR_MAP_FULL_SCALE: f32 = 0.1;
+
+/// Writes the report files into `dir` and returns the report with their names.
+pub fn write_report(sweep: &Sweep, dir: &Path) -> Result<SweepReport> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let write = |name: &str, bytes: &[u8]| -> Result<()> {
+        crate::file::write_atomic(&dir.join(name), bytes)
+    };
+    let mut report = sweep.report.clone();
+    let mut files = Vec::new();
+    let (w, h) = (sweep.receivers.width, sweep.receivers.height);
+    for (label, ao) in &sweep.default_ao {
+        let name = format!("error_map_{}.png", label.replace(':', "_"));
+        let img = error_map_rgb(
+            &sweep.receivers,
+            ao,
+            &sweep.reference_ao,
+            ERROR_MAP_FULL_SCALE,
+        );
+        write(
+            &name,
+            &crate::encode::png(w, h, &img, image::ExtendedColorType::Rgb8)?,
+        )?;
+        files.push(name);
+    }
+    if let Some(bf) = &sweep.brute_fraction {
+        let name = "brute_force_fraction.png".to_string();
+        write(
+            &name,
+            &crate::encode::grey_map(&sweep.receivers, |r| bf[r])?,
+        )?;
+        files.push(name);
+    }
+    let (svg, png) = plot::error_vs_time(&error_vs_time(&report))?;
+    write("error_vs_time.svg", svg.as_bytes())?;
+    write("error_vs_time.png", &png)?;
+    files.push("error_vs_time.svg".into());
+    files.push("error_vs_time.png".into());
+    files.push("report.md".into());
+    files.push("report.json".into());
+    report.files = files;
+    write("report.md", markdown(&report).as_bytes())?;
+    let json = serde_json::to_vec_pretty(&report)
+        .map_err(|e| Error::Limit(format!("cannot serialize the report: {e}")))?;
+    write("report.json", &json)?;
+    Ok(report)
+}
+
+/// The error-vs-time plot of a report: one curve per method (point labels
+/// without the method's prefix), the equal-error target dashed, and where
+/// each method reaches it crossed.
+pub fn error_vs_time(r: &SweepReport) -> Plot {
+    let e = r.equal_error.as_ref();
+    let curve = |m: Method, legend: &str, crossing: Option<f64>| Curve {
+        legend: legend.to_string(),
+        points: r
+            .runs
+            .iter()
+            .filter(|x| x.method == m)
+            .map(|x| {
+                let prefix = format!("{}:", m.name());
+                let short = x.label.strip_prefix(&prefix).unwrap_or(&x.label);
+                (x.end_to_end_seconds, x.ao.rmse, short.to_string())
+            })
+            .collect(),
+        crossing,
+    };
+    let name = std::path::Path::new(&r.input)
+        .file_name()
+        .map_or(r.input.clone(), |n| n.to_string_lossy().into_owned());
+    Plot {
+        title: format!(
+            "{name}: AO error vs end-to-end time ({} texels, {} cores)",
+            r.texels, r.cores
+        ),
+        x_desc: "end-to-end seconds (log)".into(),
+        y_desc: format!("AO RMSE vs {}-ray reference (log)", r.reference_rays),
+        curves: vec![
+            curve(
+                Method::Mc,
+                "Monte Carlo (rays per texel)",
+                e.and_then(|e| e.mc_seconds),
+            ),
+            curve(
+                Method::Filtered,
+                "filtered (sparse rays : gather radius)",
+                e.and_then(|e| e.filtered_seconds),
+            ),
+        ],
+        target: e.map(|e| Target {
+            error: e.target_ao_rmse,
+            legend: match e.speedup {
+                Some(x) => format!(
+                    "MC-{TARGET_RAYS} error {:.4}: filtered {x:.2}x as fast",
+                    e.target_ao_rmse
+                ),
+                None => format!(
+                    "MC-{TARGET_RAYS} error {:.4}: not reached by filtered",
+                    e.target_ao_rmse
+                ),
+            },
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn error_map_colours() {
+        let receivers = Receivers {
+            width: 3,
+            height: 1,
+            texel: vec![0, 2],
+            ..Default::default()
+        };
+        let img = error_map_rgb(&receivers, &[0.45, 0.6], &[0.5, 0.5], 0.1);
+        // Too dark by 0.05: half red. Too bright by 0.1: full green.
+        assert_eq!(&img[0..3], &[128, 0, 0]);
+        assert_eq!(&img[3..6], &[32, 32, 32]);
+        assert_eq!(&img[6..9], &[0, 255, 0]);
+    }
+}

@@ -1,0 +1,106 @@
+//! `report.md`: a report as a Markdown page.
+//!
+//! In: a [`SweepReport`]. Out: the page's text: the runs' table, the
+//! equal-error sentence and the scale-stability table.
+
+use super::{SweepReport, TARGET_RAYS};
+
+/// The report as a Markdown page.
+pub fn markdown(r: &SweepReport) -> String {
+    let mut s = String::new();
+    let mut line = |t: String| {
+        s.push_str(&t);
+        s.push('\n');
+    };
+    line(format!("# aobake report: {}\n", r.input));
+    line(format!(
+        "aobake {}, {} cores ({} threads). Atlas {}x{} ({} texels, {} charts), {} occluder triangles, max distance {:.4} (world units).\n",
+        r.aobake_version,
+        r.cores,
+        r.threads,
+        r.atlas_width,
+        r.atlas_height,
+        r.texels,
+        r.charts,
+        r.occluder_triangles,
+        r.max_distance_world
+    ));
+    line(format!(
+        "Reference: {}-ray Monte Carlo (seed {}), {:.2} s. Shared stages (load, unwrap, rasterize, BVH, dilate, encode, write): {:.2} s, counted in every end-to-end time. Errors are per texel against the reference; AO bias > 0 means too bright.\n",
+        r.reference_rays, r.reference_seed, r.reference_seconds, r.shared_seconds
+    ));
+    line("| run | end-to-end s | passes s | rays/texel | AO RMSE | AO bias | AO p99 | AO max | SH RMSE L0 | L1 | L2 | cells brute-forced (contact, no hit) |".into());
+    line("|---|---|---|---|---|---|---|---|---|---|---|---|".into());
+    for run in &r.runs {
+        let passes: Vec<String> = run
+            .passes
+            .iter()
+            .map(|p| format!("{} {:.2}", p.stage, p.seconds))
+            .collect();
+        line(format!(
+            "| {}{} | {:.2} | {} | {:.1} | {:.4} | {:+.4} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {} |",
+            run.label,
+            if run.default_settings {
+                " (default)"
+            } else {
+                ""
+            },
+            run.end_to_end_seconds,
+            passes.join(", "),
+            run.rays_per_texel,
+            run.ao.rmse,
+            run.ao.bias,
+            run.ao.p99,
+            run.ao.max,
+            run.sh_rmse_band[0],
+            run.sh_rmse_band[1],
+            run.sh_rmse_band[2],
+            match (
+                run.cells_brute_forced,
+                run.cells_brute_contact,
+                run.cells_brute_no_hit,
+            ) {
+                (Some(b), Some(c), Some(u)) =>
+                    format!("{:.1}% ({:.1}%, {:.1}%)", 100.0 * b, 100.0 * c, 100.0 * u),
+                _ => "-".into(),
+            }
+        ));
+    }
+    if let Some(e) = &r.equal_error {
+        line(String::new());
+        let fmt = |v: Option<f64>| v.map_or("not reached".to_string(), |v| format!("{v:.2} s"));
+        line(format!(
+            "**Equal error** at {}-ray Monte Carlo's AO RMSE {:.4}: Monte Carlo {}, filtered {}; {}",
+            TARGET_RAYS,
+            e.target_ao_rmse,
+            fmt(e.mc_seconds),
+            fmt(e.filtered_seconds),
+            match e.speedup {
+                Some(x) => format!("filtered is {x:.2}x as fast."),
+                None => format!(
+                    "no filtered run reached it (best filtered AO RMSE {}).",
+                    e.best_filtered_ao_rmse
+                        .map_or("-".into(), |v| format!("{v:.4}"))
+                ),
+            }
+        ));
+    }
+    if !r.stability.is_empty() {
+        line(String::new());
+        line("**Scale stability** (the scene scaled uniformly, max distance alike; AO against the unscaled bake with the same rays and seed):\n".into());
+        line("| scale | max distance (world) | AO RMSE difference | AO max difference | Monte Carlo noise (RMSE vs reference) | same within noise |".into());
+        line("|---|---|---|---|---|---|".into());
+        for row in &r.stability {
+            line(format!(
+                "| {:e} | {:.4e} | {:.2e} | {:.2e} | {:.4} | {} |",
+                row.scale,
+                row.max_distance_world,
+                row.ao_rmse_difference,
+                row.ao_max_difference,
+                row.monte_carlo_noise_rmse,
+                if row.same_within_noise { "yes" } else { "no" }
+            ));
+        }
+    }
+    s
+}

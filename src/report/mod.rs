@@ -1,0 +1,464 @@
+//! Report (`aobake report`): what quality each second buys, for one scene.
+//!
+//! In: a loaded [`Scene`] and [`ReportSettings`]. Out: a [`SweepReport`]
+//! and, with [`write_report`], a directory of `report.json`, `report.md`,
+//! `error_vs_time.svg`/`.png`, AO error maps of each method's default
+//! settings and the filter's brute-force fraction map.
+//!
+//! - `mod.rs`: the sweep and the equal-error comparison;
+//! - [`budget`]: the runs (`--budgets`);
+//! - [`metrics`]: error statistics and log-log interpolation;
+//! - [`plot`]: log-log curves of plain points (plotters);
+//! - [`files`]: the error maps and the files of a report directory;
+//! - [`markdown`](mod@markdown): `report.md`.
+//!
+//! The scene is unwrapped, rasterized and its BVH built once
+//! ([`pipeline::prepare`]); a high-ray Monte Carlo *reference* and every
+//! run of the sweep bake those same receivers, so errors compare texel by
+//! texel. A run's end-to-end time is the shared stages (measured once,
+//! including encode and write of the reference) plus its own passes.
+//! The reference uses a different seed from the runs, so a run is never
+//! correlated with it.
+
+pub mod budget;
+pub mod files;
+pub mod markdown;
+pub mod metrics;
+pub mod plot;
+
+pub use budget::{Budget, DEFAULT_BUDGETS, TARGET_RAYS, parse_budgets};
+pub use files::{ERROR_MAP_FULL_SCALE, error_map_rgb, write_report};
+pub use markdown::markdown;
+
+use crate::atlas::{AtlasSize, Receivers};
+use crate::error::{Error, Result};
+use crate::gltf::Scene;
+use crate::pipeline::{self, Prepared};
+use crate::settings::{Method, Settings};
+use crate::stage::{StageTime, StageTimer, progress_bar};
+use metrics::{ErrorStats, cost_at_error, error_stats, loglog_at, sh_band_rmse};
+use serde::Serialize;
+
+/// What `aobake report` is told.
+#[derive(Clone, Debug)]
+pub struct ReportSettings {
+    /// Atlas page edge in texels.
+    pub resolution: u32,
+    pub reference_rays: u32,
+    pub budgets: Vec<Budget>,
+    /// Seed of the runs (the reference uses another one).
+    pub seed: u64,
+    /// World units; `None`: the pipeline's default.
+    pub max_distance: Option<f64>,
+    /// Monte Carlo rays of the scale-stability bakes; 0 skips them.
+    pub stability_rays: u32,
+    /// Also run each method's default settings if `budgets` lacks them
+    /// (their error maps are drawn and 256-ray Monte Carlo sets the
+    /// equal-error target).
+    pub include_defaults: bool,
+    pub progress: bool,
+}
+
+impl Default for ReportSettings {
+    fn default() -> Self {
+        ReportSettings {
+            resolution: 512,
+            reference_rays: 2048,
+            budgets: parse_budgets(DEFAULT_BUDGETS).expect("default budgets parse"),
+            seed: 0,
+            max_distance: None,
+            stability_rays: 64,
+            include_defaults: true,
+            progress: true,
+        }
+    }
+}
+
+impl ReportSettings {
+    /// Checks the report's own settings (each run's bake settings are
+    /// checked by [`Settings::validate`]).
+    pub fn validate(&self) -> Result<()> {
+        if self.reference_rays == 0 {
+            return Err(Error::option("reference_rays", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+/// The figures of one run against the reference.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunFigures {
+    pub label: String,
+    pub method: Method,
+    /// Whether these are the method's default settings (error maps drawn).
+    pub default_settings: bool,
+    /// Wall time of each of the run's own passes.
+    pub passes: Vec<StageTime>,
+    pub bake_seconds: f64,
+    /// Shared stages plus this run's passes.
+    pub end_to_end_seconds: f64,
+    pub rays_cast: u64,
+    pub rays_per_texel: f64,
+    pub ao: ErrorStats,
+    /// RMSE of the SH coefficients per band L0, L1, L2, and over all nine.
+    pub sh_rmse_band: [f64; 3],
+    pub sh_rmse: f64,
+    /// Filtered only: fractions of all hemisphere cells.
+    pub cells_filtered: Option<f64>,
+    pub cells_brute_forced: Option<f64>,
+    pub cells_brute_contact: Option<f64>,
+    /// Of all cells: brute-forced because no neighbour ray hit in them and
+    /// too few looked through them to trust them open.
+    pub cells_brute_no_hit: Option<f64>,
+}
+
+/// The equal-error comparison at the error of 256-ray Monte Carlo.
+#[derive(Clone, Debug, Serialize)]
+pub struct EqualError {
+    /// AO RMSE of 256-ray Monte Carlo (measured, or interpolated in log-log
+    /// between the nearest Monte Carlo runs).
+    pub target_ao_rmse: f64,
+    /// End-to-end seconds at which each method's best runs reach it.
+    pub mc_seconds: Option<f64>,
+    pub filtered_seconds: Option<f64>,
+    /// mc_seconds / filtered_seconds (> 1: filtered is faster).
+    pub speedup: Option<f64>,
+    /// Smallest AO RMSE any filtered run reached.
+    pub best_filtered_ao_rmse: Option<f64>,
+}
+
+/// One row of the scale-stability table.
+#[derive(Clone, Debug, Serialize)]
+pub struct StabilityRow {
+    pub scale: f64,
+    pub max_distance_world: f64,
+    /// AO of the scaled scene against the unscaled one (same settings and seed).
+    pub ao_rmse_difference: f64,
+    pub ao_max_difference: f64,
+    /// AO RMSE of the unscaled bake against the reference: its Monte Carlo noise.
+    pub monte_carlo_noise_rmse: f64,
+    pub same_within_noise: bool,
+}
+
+/// Everything `aobake report` measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepReport {
+    pub aobake_version: &'static str,
+    pub input: String,
+    pub cores: usize,
+    pub threads: usize,
+    pub resolution: u32,
+    pub atlas_width: u32,
+    pub atlas_height: u32,
+    pub texels: usize,
+    pub charts: u32,
+    pub occluder_triangles: usize,
+    pub max_distance_world: f64,
+    pub seed: u64,
+    pub reference_rays: u32,
+    pub reference_seed: u64,
+    pub reference_seconds: f64,
+    /// Stages every run shares (load, unwrap, rasterize, BVH, dilate,
+    /// encode, write), measured once.
+    pub shared_stages: Vec<StageTime>,
+    pub shared_seconds: f64,
+    pub runs: Vec<RunFigures>,
+    pub equal_error: Option<EqualError>,
+    pub stability: Vec<StabilityRow>,
+    /// Files written next to report.json.
+    pub files: Vec<String>,
+}
+
+/// Everything a sweep produced: the figures and the per-texel values the
+/// maps are drawn from.
+pub struct Sweep {
+    pub report: SweepReport,
+    pub receivers: Receivers,
+    pub reference_ao: Vec<f32>,
+    /// (label, AO) of each method's default run.
+    pub default_ao: Vec<(String, Vec<f32>)>,
+    /// Brute-force fraction per receiver of the default filtered run.
+    pub brute_fraction: Option<Vec<f32>>,
+}
+
+/// Seed of the reference: never one a run uses.
+fn reference_seed(seed: u64) -> u64 {
+    seed ^ 0x5eed_0f2e_f02e_2ce5
+}
+
+/// Runs the sweep on a loaded scene. `timer` holds the stages so far (the
+/// load); they join the shared stages.
+pub fn sweep(
+    scene: &Scene,
+    input: &str,
+    mut timer: StageTimer,
+    rs: &ReportSettings,
+) -> Result<Sweep> {
+    rs.validate()?;
+    let mut budgets = rs.budgets.clone();
+    // Each method's default settings are always measured (their error maps
+    // are drawn and the equal-error target is 256-ray Monte Carlo).
+    for d in [Budget::mc(TARGET_RAYS), Budget::filtered_default()] {
+        if rs.include_defaults
+            && !budgets
+                .iter()
+                .any(|b| b.method == d.method && b.is_default())
+        {
+            budgets.push(d);
+        }
+    }
+    let base = Settings {
+        size: AtlasSize::Resolution(rs.resolution),
+        max_distance: rs.max_distance,
+        progress: false,
+        ..Default::default()
+    };
+    // Every run's settings, before the first stage.
+    let ref_settings = Budget::mc(rs.reference_rays).settings(&base, reference_seed(rs.seed));
+    ref_settings.validate()?;
+    for b in &budgets {
+        b.settings(&base, rs.seed).validate()?;
+    }
+    let total_steps = 1 + budgets.len() as u64 + if rs.stability_rays > 0 { 3 } else { 0 };
+    let pb = progress_bar(rs.progress, total_steps, "report");
+    pb.set_message("prepare");
+    let prepared = pipeline::prepare(scene, &base, &mut timer)?;
+    let texels = prepared.receivers.len();
+
+    // The reference, through the whole pipeline once to time the shared
+    // output stages.
+    pb.set_message(format!("reference (mc:{})", rs.reference_rays));
+    let mut ref_timer = StageTimer::new();
+    let reference = pipeline::bake_prepared(&prepared, &ref_settings, &mut ref_timer)?;
+    let reference_seconds = ref_timer.total();
+    pipeline::output(
+        scene,
+        &prepared,
+        &reference,
+        &ref_settings,
+        None,
+        &mut timer,
+    )?;
+    pb.inc(1);
+    let shared_seconds = timer.total();
+    let shared_stages = timer.into_stages();
+    let ref_ao = &reference.bake.ao;
+    let ref_sh = &reference.bake.sh;
+    let ref_sh_flat: Vec<f32> = ref_sh.iter().flatten().copied().collect();
+
+    let mut runs = Vec::new();
+    let mut default_ao = Vec::new();
+    let mut brute_fraction = None;
+    for b in &budgets {
+        let label = b.label();
+        pb.set_message(label.clone());
+        let s = b.settings(&base, rs.seed);
+        let mut run_timer = StageTimer::new();
+        let passes = pipeline::bake_prepared(&prepared, &s, &mut run_timer)?;
+        let bake_seconds = run_timer.total();
+        let ao = error_stats(&passes.bake.ao, ref_ao);
+        let sh_flat: Vec<f32> = passes.bake.sh.iter().flatten().copied().collect();
+        let fs = passes.filter_stats.as_ref();
+        let default_settings = b.is_default();
+        if default_settings && !default_ao.iter().any(|(l, _)| *l == label) {
+            default_ao.push((label.clone(), passes.bake.ao.clone()));
+            if let Some(f) = fs {
+                brute_fraction = Some(f.brute_fraction.clone());
+            }
+        }
+        runs.push(RunFigures {
+            label,
+            method: b.method,
+            default_settings,
+            passes: passes.stages.clone(),
+            bake_seconds,
+            end_to_end_seconds: shared_seconds + bake_seconds,
+            rays_cast: passes.bake.rays,
+            rays_per_texel: passes.bake.rays as f64 / texels.max(1) as f64,
+            ao,
+            sh_rmse_band: sh_band_rmse(&passes.bake.sh, ref_sh),
+            sh_rmse: error_stats(&sh_flat, &ref_sh_flat).rmse,
+            cells_filtered: fs.map(|f| f.cell_share(f.cells_filtered)),
+            cells_brute_forced: fs.map(|f| f.cell_share(f.cells_brute)),
+            cells_brute_contact: fs.map(|f| f.cell_share(f.cells_contact)),
+            cells_brute_no_hit: fs.map(|f| f.cell_share(f.cells_no_hit)),
+        });
+        pb.inc(1);
+    }
+    let equal_error = equal_error(&runs);
+
+    let stability = if rs.stability_rays > 0 {
+        pb.set_message("scale stability");
+        let r = stability(scene, &base, &prepared, rs, ref_ao)?;
+        pb.inc(3);
+        r
+    } else {
+        Vec::new()
+    };
+    pb.finish_and_clear();
+
+    let report = SweepReport {
+        aobake_version: env!("CARGO_PKG_VERSION"),
+        input: input.to_string(),
+        cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        threads: rayon::current_num_threads(),
+        resolution: rs.resolution,
+        atlas_width: prepared.atlas.width,
+        atlas_height: prepared.atlas.height,
+        texels,
+        charts: prepared.atlas.charts,
+        occluder_triangles: prepared.tracer.triangle_count(),
+        max_distance_world: prepared.max_distance_world,
+        seed: rs.seed,
+        reference_rays: rs.reference_rays,
+        reference_seed: reference_seed(rs.seed),
+        reference_seconds,
+        shared_stages,
+        shared_seconds,
+        runs,
+        equal_error,
+        stability,
+        files: Vec::new(),
+    };
+    Ok(Sweep {
+        report,
+        reference_ao: reference.bake.ao,
+        receivers: prepared.receivers,
+        default_ao,
+        brute_fraction,
+    })
+}
+
+/// The equal-error comparison of a sweep's runs (see [`EqualError`]).
+pub fn equal_error(runs: &[RunFigures]) -> Option<EqualError> {
+    let curve = |m: Method| -> Vec<(f64, f64)> {
+        runs.iter()
+            .filter(|r| r.method == m)
+            .map(|r| (r.end_to_end_seconds, r.ao.rmse))
+            .collect()
+    };
+    let mc_by_rays: Vec<(f64, f64)> = runs
+        .iter()
+        .filter(|r| r.method == Method::Mc)
+        .map(|r| (r.rays_per_texel, r.ao.rmse))
+        .collect();
+    let target = loglog_at(&mc_by_rays, TARGET_RAYS as f64)?;
+    let mc_seconds = cost_at_error(&curve(Method::Mc), target);
+    let filtered = curve(Method::Filtered);
+    let filtered_seconds = cost_at_error(&filtered, target);
+    Some(EqualError {
+        target_ao_rmse: target,
+        mc_seconds,
+        filtered_seconds,
+        speedup: match (mc_seconds, filtered_seconds) {
+            (Some(m), Some(f)) if f > 0.0 => Some(m / f),
+            _ => None,
+        },
+        best_filtered_ao_rmse: filtered.iter().map(|p| p.1).min_by(f64::total_cmp),
+    })
+}
+
+/// The scene uniformly scaled by `scale` (every placement's transform).
+pub fn scaled_scene(scene: &Scene, scale: f64) -> Scene {
+    let mut s = scene.clone();
+    let m = glam::DMat4::from_scale(glam::DVec3::splat(scale));
+    for inst in &mut s.instances {
+        inst.transform = m * inst.transform;
+    }
+    s
+}
+
+/// Bakes the scene at 1, 1e-4 and 1e4 scale with the max distance scaled
+/// alike and compares the AO texel by texel.
+fn stability(
+    scene: &Scene,
+    base: &Settings,
+    prepared: &Prepared,
+    rs: &ReportSettings,
+    reference_ao: &[f32],
+) -> Result<Vec<StabilityRow>> {
+    let s = Budget::mc(rs.stability_rays).settings(base, rs.seed);
+    let unscaled = pipeline::bake_prepared(prepared, &s, &mut StageTimer::new())?
+        .bake
+        .ao;
+    let noise = error_stats(&unscaled, reference_ao).rmse;
+    let mut rows = Vec::new();
+    for scale in [1e-4, 1e4] {
+        let scaled = scaled_scene(scene, scale);
+        let max_distance_world = prepared.max_distance_world * scale;
+        let ss = Settings {
+            max_distance: Some(max_distance_world),
+            // Raw AO is compared, the inside fill is not: skip its pass.
+            fill_inside: false,
+            ..s.clone()
+        };
+        let mut timer = StageTimer::new();
+        let p = pipeline::prepare(&scaled, &ss, &mut timer)?;
+        if p.receivers.texel != prepared.receivers.texel {
+            return Err(Error::Limit(format!(
+                "the scene scaled by {scale:e} unwrapped to different texels; the stability table needs the same atlas"
+            )));
+        }
+        let ao = pipeline::bake_prepared(&p, &ss, &mut timer)?.bake.ao;
+        let d = error_stats(&ao, &unscaled);
+        rows.push(StabilityRow {
+            scale,
+            max_distance_world,
+            ao_rmse_difference: d.rmse,
+            ao_max_difference: d.max,
+            monte_carlo_noise_rmse: noise,
+            same_within_noise: d.rmse <= noise,
+        });
+    }
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(method: Method, seconds: f64, rays: f64, rmse: f64) -> RunFigures {
+        RunFigures {
+            label: String::new(),
+            method,
+            default_settings: false,
+            passes: Vec::new(),
+            bake_seconds: seconds,
+            end_to_end_seconds: seconds,
+            rays_cast: 0,
+            rays_per_texel: rays,
+            ao: ErrorStats {
+                rmse,
+                ..Default::default()
+            },
+            sh_rmse_band: [0.0; 3],
+            sh_rmse: 0.0,
+            cells_filtered: None,
+            cells_brute_forced: None,
+            cells_brute_contact: None,
+            cells_brute_no_hit: None,
+        }
+    }
+
+    #[test]
+    fn equal_error_speedup() {
+        // MC: error 0.16/sqrt(rays), time = rays / 64 s; error at 256 rays
+        // is 0.01, reached at 4 s. Filtered reaches 0.01 at 1 s: 4x.
+        let mut runs: Vec<RunFigures> = [16.0, 64.0, 1024.0]
+            .iter()
+            .map(|&n: &f64| run(Method::Mc, n / 64.0, n, 0.16 / n.sqrt()))
+            .collect();
+        runs.push(run(Method::Filtered, 0.5, 10.0, 0.02));
+        runs.push(run(Method::Filtered, 2.0, 40.0, 0.005));
+        let e = equal_error(&runs).unwrap();
+        assert!((e.target_ao_rmse - 0.01).abs() < 1e-12);
+        assert!((e.mc_seconds.unwrap() - 4.0).abs() < 1e-9);
+        assert!((e.filtered_seconds.unwrap() - 1.0).abs() < 1e-9);
+        assert!((e.speedup.unwrap() - 4.0).abs() < 1e-9);
+        // No filtered run good enough: no speed-up, best error reported.
+        runs.truncate(4);
+        let e = equal_error(&runs).unwrap();
+        assert_eq!(e.speedup, None);
+        assert_eq!(e.best_filtered_ao_rmse, Some(0.02));
+    }
+}

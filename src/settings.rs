@@ -1,0 +1,156 @@
+//! Settings: everything a bake can be told, checked once.
+//!
+//! In: the caller's choices (the CLI's flags, or a library caller's
+//! fields). Out: [`Settings`], whose [`Settings::validate`] runs before
+//! any stage, and [`estimated_bytes`], the memory check made once the
+//! atlas size is known. Defaults live here only; the CLI takes its
+//! defaults from [`Settings::default`].
+//!
+//! Errors name a setting by its field here (`sparse_rays`); the command
+//! line shows the flag instead (`--sparse-rays`).
+
+use crate::atlas::{AtlasSize, Packing};
+use crate::bake::sheared::ShearedOptions;
+use crate::error::{Error, Result};
+use crate::gltf::write::OcclusionMode;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Memory a bake may use (checked against [`estimated_bytes`] before the
+/// per-texel arrays are allocated): the 24 GiB build machines keep room for
+/// the loaded scene and the BVH.
+pub const MAX_BAKE_BYTES: u64 = 16 << 30;
+
+/// Per atlas texel, an upper bound of what a bake holds at once: receiver
+/// (texel, position, two normals, footprint: 44 B), results (AO and 9 SH:
+/// 40 B), the float lightmap with its coverage (41 B), the dilation map
+/// (4 B), BFS queue and encoded image rows (~24 B).
+const BYTES_PER_TEXEL: u64 = 160;
+
+/// Default atlas page edge in texels.
+pub const DEFAULT_RESOLUTION: u32 = 1024;
+
+/// Default Monte Carlo rays per texel.
+pub const DEFAULT_RAYS: u32 = 256;
+
+/// Default max occluder distance as a fraction of the scene's bounding-box diagonal.
+pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
+
+/// Baking method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Sparse rays shared between texels by the sheared filter of Egan et
+    /// al. 2011 ([`crate::bake::sheared`]).
+    Filtered,
+    /// Brute-force Monte Carlo ([`crate::bake::mc`]).
+    Mc,
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Filtered => "filtered",
+            Method::Mc => "mc",
+        }
+    }
+}
+
+/// Where the lightmap UVs come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum UvSource {
+    /// Unwrap every baked placement into a new atlas (new TEXCOORD_n).
+    #[default]
+    Generate,
+    /// Reuse `TEXCOORD_<set>` as it is.
+    Existing(usize),
+}
+
+/// Everything a bake can be told.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub size: AtlasSize,
+    pub padding: u32,
+    pub packing: Packing,
+    pub uv: UvSource,
+    pub method: Method,
+    /// Rays per texel of the Monte Carlo method.
+    pub rays: u32,
+    /// Options of the filtered method.
+    pub filter: ShearedOptions,
+    /// Write diagnostic PNG maps here.
+    pub debug_dir: Option<PathBuf>,
+    /// World units; `None`: [`DEFAULT_MAX_DISTANCE_FRACTION`] of the diagonal.
+    pub max_distance: Option<f64>,
+    pub seed: u64,
+    pub occlusion: OcclusionMode,
+    pub exr_dir: Option<PathBuf>,
+    /// Show progress bars (only drawn when stderr is a terminal).
+    pub progress: bool,
+    /// Fill texels inside or behind geometry from their nearest valid
+    /// texel ([`crate::bake::validity`]); `false` bakes them as they are.
+    pub fill_inside: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            size: AtlasSize::Resolution(DEFAULT_RESOLUTION),
+            padding: 2,
+            packing: Packing::Fast,
+            uv: UvSource::Generate,
+            method: Method::Mc,
+            rays: DEFAULT_RAYS,
+            filter: ShearedOptions::default(),
+            debug_dir: None,
+            max_distance: None,
+            seed: 0,
+            occlusion: OcclusionMode::Keep,
+            exr_dir: None,
+            progress: true,
+            fill_inside: true,
+        }
+    }
+}
+
+impl Settings {
+    /// Checks every setting that can be checked without the scene: the
+    /// pipeline calls it before any stage, so a bad option fails at once.
+    pub fn validate(&self) -> Result<()> {
+        match self.method {
+            Method::Mc if self.rays == 0 => {
+                return Err(Error::option("rays", "must be at least 1"));
+            }
+            Method::Mc => {}
+            Method::Filtered => self.filter.validate()?,
+        }
+        crate::atlas::unwrap::check_size(self.size)?;
+        if let Some(d) = self.max_distance
+            && !(d.is_finite() && d > 0.0)
+        {
+            return Err(Error::option(
+                "max_distance",
+                format!("{d} must be finite and > 0"),
+            ));
+        }
+        if let (UvSource::Existing(_), AtlasSize::TexelDensity(_)) = (self.uv, self.size) {
+            return Err(Error::option_conflict(
+                "texel_density",
+                "needs generated UVs; give a resolution with existing UVs",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Memory estimate of baking a `width` x `height` atlas with settings `s`
+/// (every texel counted as covered: the worst case).
+pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
+    let texels = width as u64 * height as u64;
+    let per_texel = BYTES_PER_TEXEL
+        + match s.method {
+            Method::Mc => 0,
+            Method::Filtered => s.filter.bytes_per_texel(),
+        };
+    texels * per_texel
+}
