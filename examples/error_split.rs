@@ -8,8 +8,9 @@
 //!     cargo run --release --example error_split -- SCENE.glb [RES] [RUN] [SEEDS] [REF_RAYS]
 //!
 //! RUN is `mc:N` or `filtered:K:R[:C]` (defaults `filtered:8:4`).
-use aobake::Method;
-use aobake::bake::sheared::ShearedOptions;
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use aobake::pipeline;
 use aobake::stage::StageTimer;
 
@@ -20,35 +21,9 @@ fn main() {
     let run = a.get(3).cloned().unwrap_or("filtered:8:4".into());
     let seeds: u64 = a.get(4).and_then(|v| v.parse().ok()).unwrap_or(6);
     let refs: u32 = a.get(5).and_then(|v| v.parse().ok()).unwrap_or(2048);
-    let bytes = std::fs::read(path).unwrap();
-    let doc = aobake::gltf::container::parse(&bytes, path.parent().unwrap()).unwrap();
-    let sc = aobake::gltf::Scene::from_document(doc).unwrap();
-    let mut s = aobake::Settings {
-        size: aobake::atlas::AtlasSize::Resolution(res),
-        rays: refs,
-        progress: false,
-        ..Default::default()
-    };
-    s.fill_inside = false;
-    let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
-    let reference = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
-        .unwrap()
-        .bake;
-    let parts: Vec<&str> = run.split(':').collect();
-    let mut f = s.clone();
-    if parts[0] == "mc" {
-        f.rays = parts[1].parse().unwrap();
-    } else {
-        f.method = Method::Filtered;
-        f.filter = ShearedOptions {
-            sparse_rays: parts[1].parse().unwrap(),
-            gather_radius: parts[2].parse().unwrap(),
-            cell_rays: parts
-                .get(3)
-                .map_or(ShearedOptions::default().cell_rays, |c| c.parse().unwrap()),
-            ..ShearedOptions::default()
-        };
-    }
+    let (s, p, reference) = common::reference_bake(path, res, refs);
+    let budget = aobake::report::parse_budgets(&run).expect("RUN")[0];
+    let mut f = budget.settings(&s, 0);
     let n = p.receivers.len();
     let mut sum = vec![0.0f64; n];
     let mut sum2 = vec![0.0f64; n];

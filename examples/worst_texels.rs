@@ -2,6 +2,9 @@
 //! with the filter's per-receiver diagnostics: where a large error is.
 //!
 //!     cargo run --release --example worst_texels -- SCENE.glb [RES] [K] [R] [REF_RAYS]
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use aobake::Method;
 use aobake::bake::sheared::ShearedOptions;
 use aobake::pipeline;
@@ -12,20 +15,7 @@ fn main() {
     let path = std::path::Path::new(&a[1]);
     let arg = |i: usize, d: f64| a.get(i).and_then(|v| v.parse().ok()).unwrap_or(d);
     let (res, k, r, refs) = (arg(2, 512.0), arg(3, 8.0), arg(4, 4.0), arg(5, 256.0));
-    let bytes = std::fs::read(path).unwrap();
-    let doc = aobake::gltf::container::parse(&bytes, path.parent().unwrap()).unwrap();
-    let sc = aobake::gltf::Scene::from_document(doc).unwrap();
-    let mut s = aobake::Settings {
-        size: aobake::atlas::AtlasSize::Resolution(res as u32),
-        rays: refs as u32,
-        progress: false,
-        ..Default::default()
-    };
-    s.fill_inside = false;
-    let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
-    let reference = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
-        .unwrap()
-        .bake;
+    let (s, p, reference) = common::reference_bake(path, res as u32, refs as u32);
     let mut f = s.clone();
     f.method = Method::Filtered;
     f.filter = ShearedOptions {

@@ -32,8 +32,8 @@ pub enum Error {
     #[error("limit exceeded: {0}")]
     Limit(String),
     /// A setting out of range, or one that contradicts another. `setting`
-    /// is the library's name for it (a field of [`crate::Settings`] or
-    /// [`crate::report::ReportSettings`], such as `sparse_rays`); the
+    /// is the library's name for it (a field of `Settings` or
+    /// `ReportSettings`, such as `sparse_rays`); the
     /// command line shows its flag instead (`--sparse-rays`). `detail`
     /// follows the name, separator included (see [`Error::option`]).
     #[error("invalid option: {setting}{detail}")]

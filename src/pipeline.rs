@@ -6,7 +6,7 @@
 //! [`Baked`] holding every intermediate (for tests and reports) and the
 //! output GLB bytes, or with [`run`] the output file and its [`Report`].
 //! [`prepare`], [`bake_prepared`] and [`output`] are the three parts the
-//! report ([`crate::report`]) reuses to bake one atlas many times.
+//! report (`aobake report`) reuses to bake one atlas many times.
 
 use crate::atlas::{self, Atlas, AtlasSize, Receivers, UnwrapOptions, dilate};
 use crate::bake::sheared::{self, FilterStats};

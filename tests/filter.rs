@@ -230,6 +230,19 @@ fn tilted_shading_normals_match_brute_force() {
     );
 }
 
+/// A unit floor with a wall standing on it at x = 0.3 (0.5 high).
+fn floor_and_wall() -> aobake::gltf::Scene {
+    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 1.0, 0.0], true);
+    scene(&glb(&[floor, wall], plain_nodes(2)))
+}
+
+/// A bake without the inside fill (raw values are compared).
+fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::Settings) -> aobake::pipeline::Baked {
+    s.fill_inside = false;
+    aobake::bake_scene(sc, &s).unwrap()
+}
+
 #[test]
 fn floor_beside_a_wall_beats_64_ray_monte_carlo() {
     // A floor with a wall standing on it, filtered with a wide gather
@@ -237,14 +250,8 @@ fn floor_beside_a_wall_beats_64_ray_monte_carlo() {
     // a 1024-ray Monte Carlo reference on the same receivers: the filter
     // must be unbiased within 0.005 and closer to the reference than an
     // independent 64-ray Monte Carlo bake is.
-    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
-    let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 1.0, 0.0], true);
-    let sc = scene(&glb(&[floor, wall], plain_nodes(2)));
-    let bake = |s: aobake::Settings| {
-        let mut s = s;
-        s.fill_inside = false;
-        aobake::bake_scene(&sc, &s).unwrap()
-    };
+    let sc = floor_and_wall();
+    let bake = |s: aobake::Settings| bake_raw(&sc, s);
     let reference = bake(aobake::Settings {
         seed: 11,
         ..settings(128, 1024, Some(1.0))
@@ -341,14 +348,8 @@ fn a_wall_top_edge_does_not_darken_the_floor() {
     // an open cell's misses at infinity while its occluded neighbour re-aims
     // at the mid depth loses open rays from the edge's cells and biased this
     // band dark by 0.006 (now 0.0009).
-    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
-    let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 1.0, 0.0], true);
-    let sc = scene(&glb(&[floor, wall], plain_nodes(2)));
-    let bake = |s: aobake::Settings| {
-        let mut s = s;
-        s.fill_inside = false;
-        aobake::bake_scene(&sc, &s).unwrap()
-    };
+    let sc = floor_and_wall();
+    let bake = |s: aobake::Settings| bake_raw(&sc, s);
     let reference = bake(aobake::Settings {
         seed: 11,
         ..settings(192, 2048, Some(1.0))

@@ -48,7 +48,7 @@ pub fn nearest_receiver(width: u32, height: u32, receiver_texels: &[u32]) -> Vec
 }
 
 /// [`nearest_receiver`] where receivers marked `inside` (inside geometry,
-/// see [`crate::validity`]) are filled like gutter texels, from the nearest
+/// see [`crate::bake::validity`]) are filled like gutter texels, from the nearest
 /// valid receiver. If no receiver is valid, every receiver shows itself.
 pub fn fill_map(width: u32, height: u32, receiver_texels: &[u32], inside: &[bool]) -> Vec<u32> {
     let valid: Vec<u32> = (0..receiver_texels.len() as u32)

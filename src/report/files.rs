@@ -5,8 +5,10 @@
 //! In: a [`Sweep`]. Out: the files, each written atomically, and the
 //! report with their names.
 
+use super::budget::TARGET_RAYS;
+use super::figures::{Sweep, SweepReport};
+use super::markdown::markdown;
 use super::plot::{self, Curve, Plot, Target};
-use super::{Sweep, SweepReport, TARGET_RAYS, markdown};
 use crate::atlas::Receivers;
 use crate::error::{Error, Result};
 use crate::settings::Method;

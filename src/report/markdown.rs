@@ -3,7 +3,8 @@
 //! In: a [`SweepReport`]. Out: the page's text: the runs' table, the
 //! equal-error sentence and the scale-stability table.
 
-use super::{SweepReport, TARGET_RAYS};
+use super::budget::TARGET_RAYS;
+use super::figures::SweepReport;
 
 /// The report as a Markdown page.
 pub fn markdown(r: &SweepReport) -> String {

@@ -133,16 +133,41 @@ pub fn settings(resolution: u32, rays: u32, max_distance: Option<f64>) -> aobake
     }
 }
 
-/// Splits a GLB into JSON and BIN.
+/// Splits a GLB into JSON and BIN (the library's GLB reader).
 pub fn split(glb: &[u8]) -> (Value, Vec<u8>) {
-    let jl = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let json: Value = serde_json::from_slice(&glb[20..20 + jl]).unwrap();
-    let bin = if glb.len() > 20 + jl {
-        glb[28 + jl..].to_vec()
-    } else {
-        vec![]
+    let (json, bin) = aobake::gltf::container::glb_chunks(glb).unwrap();
+    (
+        serde_json::from_slice(json).unwrap(),
+        bin.map(<[u8]>::to_vec).unwrap_or_default(),
+    )
+}
+
+/// For the examples: the scene at `path` prepared at `resolution` without
+/// the inside fill (raw values are compared), the Monte Carlo settings of
+/// its `rays`-ray reference, and that reference.
+pub fn reference_bake(
+    path: &std::path::Path,
+    resolution: u32,
+    rays: u32,
+) -> (
+    aobake::Settings,
+    aobake::pipeline::Prepared,
+    aobake::bake::Bake,
+) {
+    use aobake::stage::StageTimer;
+    let scene = aobake::gltf::load(path).expect("load");
+    let s = aobake::Settings {
+        size: aobake::atlas::AtlasSize::Resolution(resolution),
+        rays,
+        progress: false,
+        fill_inside: false,
+        ..Default::default()
     };
-    (json, bin)
+    let p = aobake::pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
+    let reference = aobake::pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+        .expect("reference")
+        .bake;
+    (s, p, reference)
 }
 
 /// The output GLB of a bake run on a pool of `threads` threads.

@@ -4,7 +4,7 @@
 //! In: [`Receivers`]. Out: an order (`order[new] = old`), the permuted
 //! receivers, and a [`Bake`] and [`FilterStats`] unpermuted.
 
-use super::FilterStats;
+use super::types::FilterStats;
 use crate::atlas::Receivers;
 use crate::bake::Bake;
 

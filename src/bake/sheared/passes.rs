@@ -6,37 +6,14 @@
 //! [`BakeParams`]. Out: [`Samples`], then a [`Bake`] and [`FilterStats`].
 
 use super::receiver::{Pass, ReceiverResult, Scratch, filter_receiver};
-use super::{FilterStats, ShearedOptions};
+use super::types::{FilterStats, SPARSE_STREAM, Samples, ShearedOptions};
 use crate::atlas::Receivers;
 use crate::bake::{Bake, BakeParams, ReceiverRays};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::sample::{CELL_COUNT, square_cell};
 use crate::trace::Tracer;
 use glam::Vec3;
-use kiddo::ImmutableKdTree;
 use rayon::prelude::*;
-
-/// The receiver sequence ([`ReceiverRays::with_stream`]) of the sparse
-/// pass, which the second pass continues.
-pub(super) const SPARSE_STREAM: u64 = 1;
-
-/// The sparse pass: K samples per receiver, receiver-major.
-#[derive(Clone, Debug, Default)]
-pub struct Samples {
-    pub per_receiver: usize,
-    pub dir: Vec<Vec3>,
-    /// Cell of each direction in its own receiver's frame (exact, from the
-    /// sample's point in the square): reused by neighbours with the same
-    /// normal, hence the same frame, which is most of a flat surface.
-    pub cell: Vec<u8>,
-    /// Hit distance; `INFINITY` for a miss within [`sparse_t_max`];
-    /// negative for a direction below the geometric horizon (it enters the
-    /// receiver's own surface and says nothing about occluders).
-    pub t: Vec<f32>,
-    /// Unit geometric normal of the hit (either side; zero for a miss):
-    /// for the solid-angle Jacobian of the reprojection.
-    pub hit_normal: Vec<Vec3>,
-}
 
 /// How far sparse rays are traced: the max distance plus the widest gather
 /// reach, so an occluder within the max distance of a *receiver* is found
@@ -103,13 +80,6 @@ pub fn sparse_pass(
     }
 }
 
-/// The k-d tree over receiver positions that the neighbour gather queries.
-pub(super) fn receiver_tree(receivers: &Receivers) -> Result<ImmutableKdTree<f32, 3>> {
-    let points: Vec<[f32; 3]> = receivers.position.iter().map(|p| p.to_array()).collect();
-    ImmutableKdTree::<f32, 3>::new_from_slice(&points)
-        .map_err(|e| Error::Limit(format!("cannot build the receivers' k-d tree: {e}")))
-}
-
 /// Filters every receiver from the sparse samples (Algorithm 1), casting
 /// brute-force rays for the cells it marks.
 pub fn filter_pass(
@@ -120,15 +90,7 @@ pub fn filter_pass(
     params: &BakeParams,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Bake, FilterStats)> {
-    let tree = receiver_tree(receivers)?;
-    let pass = Pass {
-        receivers,
-        samples,
-        tree: &tree,
-        tracer,
-        s,
-        params,
-    };
+    let pass = Pass::new(receivers, samples, tracer, s, params)?;
     let n = receivers.len();
     let results: Vec<ReceiverResult> = (0..n)
         .into_par_iter()

@@ -6,14 +6,14 @@
 //! and a receiver index. Out: a [`ReceiverResult`]: its AO and SH and the
 //! counts behind [`super::FilterStats`].
 
-use super::ShearedOptions;
 use super::geometry::{
     hit_offset, lends_rays, mid_depth, miss_depths, needs_brute_force, reproject,
     reprojection_jacobian, spatial_radius, tangent_offset_sq, weight, weight_sq,
 };
-use super::passes::{SPARSE_STREAM, Samples};
+use super::types::{SPARSE_STREAM, Samples, ShearedOptions};
 use crate::atlas::Receivers;
 use crate::bake::{BakeParams, ReceiverRays};
+use crate::error::{Error, Result};
 use crate::sample::{CELL_COUNT, Frame, cell_of_fast, cosine_hemisphere, in_cell, square_cell};
 use crate::sh::{self, SH_COUNT};
 use crate::trace::Tracer;
@@ -22,16 +22,38 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use std::sync::LazyLock;
 
 /// What every receiver's filtering reads.
-#[derive(Clone, Copy)]
 pub(super) struct Pass<'a> {
     /// In locality order ([`super::locality_order`]).
     pub receivers: &'a Receivers,
     pub samples: &'a Samples,
     /// Over the receivers' positions.
-    pub tree: &'a ImmutableKdTree<f32, 3>,
+    pub tree: ImmutableKdTree<f32, 3>,
     pub tracer: &'a Tracer,
     pub s: &'a ShearedOptions,
     pub params: &'a BakeParams,
+}
+
+impl<'a> Pass<'a> {
+    /// The pass over `receivers`, with the k-d tree of their positions.
+    pub(super) fn new(
+        receivers: &'a Receivers,
+        samples: &'a Samples,
+        tracer: &'a Tracer,
+        s: &'a ShearedOptions,
+        params: &'a BakeParams,
+    ) -> Result<Pass<'a>> {
+        let points: Vec<[f32; 3]> = receivers.position.iter().map(|p| p.to_array()).collect();
+        let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&points)
+            .map_err(|e| Error::Limit(format!("cannot build the receivers' k-d tree: {e}")))?;
+        Ok(Pass {
+            receivers,
+            samples,
+            tree,
+            tracer,
+            s,
+            params,
+        })
+    }
 }
 
 /// Fewest hits in a cell for its z_max to be trusted in Eq. 8.
@@ -158,7 +180,7 @@ pub(super) fn filter_receiver(f: &Pass, r: usize, sc: &mut Scratch) -> ReceiverR
     let Pass {
         receivers,
         samples,
-        tree,
+        ref tree,
         s,
         params,
         ..
@@ -616,15 +638,7 @@ pub fn cell_estimates(
     params: &BakeParams,
     r: usize,
 ) -> Vec<(f32, f32, bool)> {
-    let tree = super::passes::receiver_tree(receivers).expect("k-d tree");
-    let pass = Pass {
-        receivers,
-        samples,
-        tree: &tree,
-        tracer,
-        s,
-        params,
-    };
+    let pass = Pass::new(receivers, samples, tracer, s, params).expect("k-d tree");
     let mut sc = Scratch::new();
     filter_receiver(&pass, r, &mut sc);
     (0..CELL_COUNT)

@@ -1,0 +1,156 @@
+//! What a sweep is told and what it measured: the types every other file
+//! of the report reads.
+//!
+//! In: nothing (the bottom of the folder). Out: [`ReportSettings`],
+//! [`RunFigures`], [`EqualError`], [`StabilityRow`], [`SweepReport`] (the
+//! `report.json`) and [`Sweep`].
+
+use super::budget::{Budget, DEFAULT_BUDGETS, parse_budgets};
+use super::metrics::ErrorStats;
+use crate::atlas::Receivers;
+use crate::error::{Error, Result};
+use crate::settings::Method;
+use crate::stage::StageTime;
+use serde::Serialize;
+
+/// What `aobake report` is told.
+#[derive(Clone, Debug)]
+pub struct ReportSettings {
+    /// Atlas page edge in texels.
+    pub resolution: u32,
+    pub reference_rays: u32,
+    pub budgets: Vec<Budget>,
+    /// Seed of the runs (the reference uses another one).
+    pub seed: u64,
+    /// World units; `None`: the pipeline's default.
+    pub max_distance: Option<f64>,
+    /// Monte Carlo rays of the scale-stability bakes; 0 skips them.
+    pub stability_rays: u32,
+    /// Also run each method's default settings if `budgets` lacks them
+    /// (their error maps are drawn and 256-ray Monte Carlo sets the
+    /// equal-error target).
+    pub include_defaults: bool,
+    pub progress: bool,
+}
+
+impl Default for ReportSettings {
+    fn default() -> Self {
+        ReportSettings {
+            resolution: 512,
+            reference_rays: 2048,
+            budgets: parse_budgets(DEFAULT_BUDGETS).expect("default budgets parse"),
+            seed: 0,
+            max_distance: None,
+            stability_rays: 64,
+            include_defaults: true,
+            progress: true,
+        }
+    }
+}
+
+impl ReportSettings {
+    /// Checks the report's own settings (each run's bake settings are
+    /// checked by [`Settings::validate`]).
+    pub fn validate(&self) -> Result<()> {
+        if self.reference_rays == 0 {
+            return Err(Error::option("reference_rays", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+/// The figures of one run against the reference.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunFigures {
+    pub label: String,
+    pub method: Method,
+    /// Whether these are the method's default settings (error maps drawn).
+    pub default_settings: bool,
+    /// Wall time of each of the run's own passes.
+    pub passes: Vec<StageTime>,
+    pub bake_seconds: f64,
+    /// Shared stages plus this run's passes.
+    pub end_to_end_seconds: f64,
+    pub rays_cast: u64,
+    pub rays_per_texel: f64,
+    pub ao: ErrorStats,
+    /// RMSE of the SH coefficients per band L0, L1, L2, and over all nine.
+    pub sh_rmse_band: [f64; 3],
+    pub sh_rmse: f64,
+    /// Filtered only: fractions of all hemisphere cells.
+    pub cells_filtered: Option<f64>,
+    pub cells_brute_forced: Option<f64>,
+    pub cells_brute_contact: Option<f64>,
+    /// Of all cells: brute-forced because no neighbour ray hit in them and
+    /// too few looked through them to trust them open.
+    pub cells_brute_no_hit: Option<f64>,
+}
+
+/// The equal-error comparison at the error of 256-ray Monte Carlo.
+#[derive(Clone, Debug, Serialize)]
+pub struct EqualError {
+    /// AO RMSE of 256-ray Monte Carlo (measured, or interpolated in log-log
+    /// between the nearest Monte Carlo runs).
+    pub target_ao_rmse: f64,
+    /// End-to-end seconds at which each method's best runs reach it.
+    pub mc_seconds: Option<f64>,
+    pub filtered_seconds: Option<f64>,
+    /// mc_seconds / filtered_seconds (> 1: filtered is faster).
+    pub speedup: Option<f64>,
+    /// Smallest AO RMSE any filtered run reached.
+    pub best_filtered_ao_rmse: Option<f64>,
+}
+
+/// One row of the scale-stability table.
+#[derive(Clone, Debug, Serialize)]
+pub struct StabilityRow {
+    pub scale: f64,
+    pub max_distance_world: f64,
+    /// AO of the scaled scene against the unscaled one (same settings and seed).
+    pub ao_rmse_difference: f64,
+    pub ao_max_difference: f64,
+    /// AO RMSE of the unscaled bake against the reference: its Monte Carlo noise.
+    pub monte_carlo_noise_rmse: f64,
+    pub same_within_noise: bool,
+}
+
+/// Everything `aobake report` measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepReport {
+    pub aobake_version: &'static str,
+    pub input: String,
+    pub cores: usize,
+    pub threads: usize,
+    pub resolution: u32,
+    pub atlas_width: u32,
+    pub atlas_height: u32,
+    pub texels: usize,
+    pub charts: u32,
+    pub occluder_triangles: usize,
+    pub max_distance_world: f64,
+    pub seed: u64,
+    pub reference_rays: u32,
+    pub reference_seed: u64,
+    pub reference_seconds: f64,
+    /// Stages every run shares (load, unwrap, rasterize, BVH, dilate,
+    /// encode, write), measured once.
+    pub shared_stages: Vec<StageTime>,
+    pub shared_seconds: f64,
+    pub runs: Vec<RunFigures>,
+    pub equal_error: Option<EqualError>,
+    pub stability: Vec<StabilityRow>,
+    /// Files written next to report.json.
+    pub files: Vec<String>,
+}
+
+/// Everything a sweep produced: the figures and the per-texel values the
+/// maps are drawn from.
+pub struct Sweep {
+    pub report: SweepReport,
+    pub receivers: Receivers,
+    pub reference_ao: Vec<f32>,
+    /// (label, AO) of each method's default run.
+    pub default_ao: Vec<(String, Vec<f32>)>,
+    /// Brute-force fraction per receiver of the default filtered run.
+    pub brute_fraction: Option<Vec<f32>>,
+}
