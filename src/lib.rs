@@ -12,6 +12,7 @@
 //! | encode | [`encode`] | bake + dilation map -> lightmap PNGs (and EXR) |
 //! | write | [`gltf::write`] | scene + atlas + PNGs -> the output GLB |
 //! | report | [`report`] | a scene -> error against time for each method |
+//! | view | [`view`] | a baked GLB -> the relighting viewer on 127.0.0.1 |
 //!
 //! Beneath them, used by the stages and using none: [`sample`] (Sobol
 //! points, cells, frames), [`sh`] (the SH basis), [`stage`] (timer and
@@ -31,6 +32,7 @@ pub mod settings;
 pub mod sh;
 pub mod stage;
 pub mod trace;
+pub mod view;
 
 pub use error::{Error, Result};
 pub use pipeline::{Report, bake_file, bake_scene, run};

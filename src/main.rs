@@ -98,7 +98,7 @@ impl From<OcclusionMode> for OcclusionArg {
     name = "aobake",
     version,
     about,
-    after_help = "Also: aobake report IN [options]  measures AO/SH error against run time for each method (see aobake report --help)."
+    after_help = "Also: aobake report IN [options]  measures AO/SH error against run time for each method (see aobake report --help).\n      aobake view [OUT.glb]            relights a bake in the browser viewer on 127.0.0.1 (see aobake view --help)."
 )]
 struct Cli {
     /// Input .glb or .gltf.
@@ -212,12 +212,51 @@ struct ReportCli {
     quiet: bool,
 }
 
+/// Open a baked file in the relighting viewer: serves the page (viewer/)
+/// and the file on 127.0.0.1 and prints the address to open. Needs the
+/// viewer's npm dependencies (npm ci --prefix viewer).
+#[derive(Parser, Debug)]
+#[command(name = "aobake view", version)]
+struct ViewCli {
+    /// A baked .glb to show (the page can also open files itself).
+    input: Option<PathBuf>,
+    /// Port on 127.0.0.1 (0: any free port).
+    #[arg(long, default_value_t = 8080)]
+    port: u16,
+    /// The viewer's directory.
+    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/viewer"))]
+    viewer_dir: PathBuf,
+}
+
+fn run_view(cli: &ViewCli) -> anyhow::Result<()> {
+    let site = aobake::view::ViewSite {
+        root: cli.viewer_dir.clone(),
+        model: cli.input.clone(),
+    };
+    site.check()?;
+    let listener = aobake::view::bind(cli.port)?;
+    let addr = listener.local_addr()?;
+    let query = if site.model.is_some() {
+        "?model=/model.glb"
+    } else {
+        ""
+    };
+    println!("aobake: viewer at http://{addr}/{query} (Ctrl-C stops it)");
+    use std::io::Write;
+    std::io::stdout().flush()?;
+    aobake::view::serve(listener, site)?;
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
     let result = if args.get(1).is_some_and(|a| a == "report") {
         // argv[0] of the subcommand names it in usage and errors.
         let sub = std::iter::once("aobake report".into()).chain(args[2..].iter().cloned());
         run_report(&ReportCli::parse_from(sub))
+    } else if args.get(1).is_some_and(|a| a == "view") {
+        let sub = std::iter::once("aobake view".into()).chain(args[2..].iter().cloned());
+        run_view(&ViewCli::parse_from(sub))
     } else {
         run(&Cli::parse_from(&args))
     };

@@ -1,0 +1,118 @@
+// The test's own reading of an aobake GLB, independent of three.js and of
+// the viewer: GLB chunks, the AOBAKE_lightmap extension, PNG decoding
+// (pngjs), bilinear sampling as the contract's sampler does at mip level
+// 0, and the CPU relight sum_i c_i L_i.
+
+import { PNG } from 'pngjs';
+
+/** { json, bin } of a GLB. */
+export function readGlb(bytes) {
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  if (view.getUint32(0, true) !== 0x46546c67) throw new Error('not a GLB');
+  const jsonLength = view.getUint32(12, true);
+  const json = JSON.parse(new TextDecoder().decode(bytes.subarray(20, 20 + jsonLength)));
+  const binStart = 20 + jsonLength + 8;
+  const bin = bytes.subarray(binStart, binStart + view.getUint32(20 + jsonLength, true));
+  return { json, bin };
+}
+
+/** A GLB from JSON and BIN (for malformed variants). */
+export function writeGlb(json, bin) {
+  let text = Buffer.from(JSON.stringify(json));
+  text = Buffer.concat([text, Buffer.alloc((4 - (text.length % 4)) % 4, 0x20)]);
+  const binPadded = Buffer.concat([Buffer.from(bin), Buffer.alloc((4 - (bin.length % 4)) % 4)]);
+  const total = 12 + 8 + text.length + 8 + binPadded.length;
+  const header = Buffer.alloc(12);
+  header.writeUInt32LE(0x46546c67, 0);
+  header.writeUInt32LE(2, 4);
+  header.writeUInt32LE(total, 8);
+  const chunk = (len, type) => {
+    const b = Buffer.alloc(8);
+    b.writeUInt32LE(len, 0);
+    b.write(type, 4, 'latin1');
+    return b;
+  };
+  return Buffer.concat([header, chunk(text.length, 'JSON'), text, chunk(binPadded.length, 'BIN\0'), binPadded]);
+}
+
+/** The decoded RGBA8 image of textures[index]. */
+export function textureImage({ json, bin }, index) {
+  const image = json.images[json.textures[index].source];
+  const view = json.bufferViews[image.bufferView];
+  const bytes = bin.subarray(view.byteOffset ?? 0, (view.byteOffset ?? 0) + view.byteLength);
+  const png = PNG.sync.read(Buffer.from(bytes));
+  return { width: png.width, height: png.height, data: png.data };
+}
+
+/**
+ * Channel `c` of `img` at (u, v), bilinear over texel centres at
+ * ((i + 0.5) / W, (j + 0.5) / H), clamped to the edge, in [0, 1].
+ */
+export function bilinear(img, u, v, c) {
+  const x = u * img.width - 0.5;
+  const y = v * img.height - 0.5;
+  const x0 = Math.floor(x);
+  const y0 = Math.floor(y);
+  const fx = x - x0;
+  const fy = y - y0;
+  const at = (i, j) => {
+    const ci = Math.min(img.width - 1, Math.max(0, i));
+    const cj = Math.min(img.height - 1, Math.max(0, j));
+    return img.data[(cj * img.width + ci) * 4 + c] / 255;
+  };
+  return (
+    (1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x0 + 1, y0)) +
+    fy * ((1 - fx) * at(x0, y0 + 1) + fx * at(x0 + 1, y0 + 1))
+  );
+}
+
+/** Every baked primitive's extension; the atlas is shared, so one. */
+export function lightmapOf(glb) {
+  const exts = [];
+  for (const mesh of glb.json.meshes) {
+    for (const p of mesh.primitives) {
+      const e = p.extensions?.AOBAKE_lightmap;
+      if (e) exts.push(e);
+    }
+  }
+  return exts;
+}
+
+/** The 9 coefficients c_i at (u, v), decoded per the contract. */
+export function coefficientsAt(images, ext, u, v) {
+  const [, sh0, sh1, sh2] = images;
+  const ch = [
+    bilinear(sh0, u, v, 0), bilinear(sh0, u, v, 1), bilinear(sh0, u, v, 2), bilinear(sh0, u, v, 3),
+    bilinear(sh1, u, v, 0), bilinear(sh1, u, v, 1), bilinear(sh1, u, v, 2), bilinear(sh1, u, v, 3),
+    bilinear(sh2, u, v, 0),
+  ];
+  return ch.map((x, i) => ext.shScale[i] * x + ext.shOffset[i]);
+}
+
+/** The real SH basis of the contract, written out again from its table. */
+export function basis([x, y, z]) {
+  return [
+    0.282095, 0.488603 * y, 0.488603 * z, 0.488603 * x,
+    1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1),
+    1.092548 * x * z, 0.546274 * (x * x - y * y),
+  ];
+}
+
+/**
+ * SH coefficients of a scalar radiance function by quadrature over a
+ * Fibonacci sphere (a different rule from the viewer's latitude-longitude
+ * grid).
+ */
+export function projectScalar(radiance, n = 200000) {
+  const out = new Array(9).fill(0);
+  const golden = Math.PI * (3 - Math.sqrt(5));
+  for (let k = 0; k < n; k++) {
+    const y = 1 - (2 * (k + 0.5)) / n;
+    const r = Math.sqrt(1 - y * y);
+    const w = [r * Math.cos(golden * k), y, r * Math.sin(golden * k)];
+    const L = radiance(w);
+    const Y = basis(w);
+    for (let i = 0; i < 9; i++) out[i] += (L * Y[i] * 4 * Math.PI) / n;
+  }
+  return out;
+}

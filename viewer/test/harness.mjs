@@ -1,0 +1,88 @@
+// Shared by the browser tests and the screenshot script: bakes scenes with
+// the aobake binary, serves the viewer with `aobake view`, and drives
+// Debian's Chromium through playwright-core.
+//
+// Environment: AOBAKE_BIN (the aobake binary; default the release build),
+// CHROMIUM (default /usr/bin/chromium), AOBAKE_SHARED (the shared test
+// assets; default ../shared/assets beside the repository).
+
+import { spawn, execFileSync } from 'node:child_process';
+import { mkdtempSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { dirname, join, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { chromium } from 'playwright-core';
+
+export const viewerDir = resolve(dirname(fileURLToPath(import.meta.url)), '..');
+export const repoDir = resolve(viewerDir, '..');
+export const aobake = process.env.AOBAKE_BIN ?? join(repoDir, 'target/release/aobake');
+export const chromiumPath = process.env.CHROMIUM ?? '/usr/bin/chromium';
+export const sharedAssets = process.env.AOBAKE_SHARED ?? resolve(repoDir, '../shared/assets');
+
+export function tempDir() {
+  return mkdtempSync(join(tmpdir(), 'aobake-viewer-'));
+}
+
+/** Bakes `input` into `output` with extra CLI arguments. */
+export function bake(input, output, args = []) {
+  execFileSync(aobake, [input, output, '-q', ...args], { stdio: 'inherit' });
+  return output;
+}
+
+/** Starts `aobake view` on a free port; resolves to { url, stop }. */
+export function serve(model) {
+  const args = ['view', '--port', '0', '--viewer-dir', viewerDir];
+  if (model) args.push(model);
+  const child = spawn(aobake, args, { stdio: ['ignore', 'pipe', 'inherit'] });
+  return new Promise((ok, fail) => {
+    let out = '';
+    child.on('exit', (code) => fail(new Error(`aobake view exited (${code}): ${out}`)));
+    child.stdout.on('data', (d) => {
+      out += d;
+      const m = out.match(/http:\/\/127\.0\.0\.1:\d+\/\S*/);
+      if (m) ok({ url: m[0], stop: () => child.kill() });
+    });
+  });
+}
+
+/** Headless Chromium with software WebGL and no network beyond loopback. */
+export async function launch() {
+  return chromium.launch({
+    executablePath: chromiumPath,
+    args: [
+      '--no-sandbox',
+      '--disable-gpu',
+      '--use-angle=swiftshader',
+      '--enable-unsafe-swiftshader',
+      '--disable-quic',
+      '--no-first-run',
+      '--disable-background-networking',
+      '--disable-component-update',
+      '--disable-sync',
+    ],
+  });
+}
+
+/** A page of the viewer at `url`, its errors collected in `page.errors`. */
+export async function open(browser, url, viewport = { width: 800, height: 600 }) {
+  const page = await browser.newPage({ viewport });
+  page.errors = [];
+  page.on('pageerror', (e) => page.errors.push(e.message));
+  await page.goto(url);
+  await page.evaluate(() => window.aobakeViewer.ready);
+  return page;
+}
+
+/** Opens a local file through the page's file picker; resolves to the status. */
+export async function pick(page, path) {
+  const before = await page.evaluate(() => window.aobakeViewer.status().message);
+  await page.setInputFiles('#file', path);
+  await page.waitForFunction(
+    (b) => {
+      const m = window.aobakeViewer.status().message;
+      return m !== b && !m.startsWith('loading');
+    },
+    before,
+  );
+  return page.evaluate(() => window.aobakeViewer.status());
+}

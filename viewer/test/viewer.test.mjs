@@ -1,0 +1,327 @@
+// The viewer and the AOBAKE_lightmap plugin in a real browser (Debian's
+// Chromium, headless, software WebGL), against expectations computed here
+// from the decoded textures, independently of the shader.
+//
+// Run: npm test --prefix viewer (after `cargo build --release` and
+// `npm ci --prefix viewer`); `cargo test` runs it through tests/viewer.rs.
+
+import { after, before, describe, test } from 'node:test';
+import assert from 'node:assert/strict';
+import { readFileSync, writeFileSync } from 'node:fs';
+import { join } from 'node:path';
+import { bake, launch, open, pick, repoDir, serve, sharedAssets, tempDir } from './harness.mjs';
+import {
+  basis, coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage, writeGlb,
+} from './decode.mjs';
+
+const dir = tempDir();
+const files = {};
+let browser;
+let server;
+
+/** A 1x1 quad tilted so that every SH basis function matters, as a GLB. */
+function tiltedPlane(path) {
+  const n = [0.48, 0.64, 0.6];
+  const t = [0.8, -0.6, 0];
+  const b = [n[1] * t[2] - n[2] * t[1], n[2] * t[0] - n[0] * t[2], n[0] * t[1] - n[1] * t[0]];
+  const corner = (s, r) => [0, 1, 2].map((k) => (s - 0.5) * t[k] + (r - 0.5) * b[k]);
+  const pos = [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)].flat();
+  const nor = [n, n, n, n].flat();
+  const idx = [0, 1, 2, 0, 2, 3];
+  const bin = Buffer.concat([
+    Buffer.from(new Float32Array(pos).buffer),
+    Buffer.from(new Float32Array(nor).buffer),
+    Buffer.from(new Uint16Array(idx).buffer),
+  ]);
+  const min = [0, 1, 2].map((k) => Math.min(...[0, 1, 2, 3].map((v) => pos[v * 3 + k])));
+  const max = [0, 1, 2].map((k) => Math.max(...[0, 1, 2, 3].map((v) => pos[v * 3 + k])));
+  const json = {
+    asset: { version: '2.0' },
+    scene: 0,
+    scenes: [{ nodes: [0] }],
+    nodes: [{ mesh: 0 }],
+    meshes: [{ primitives: [{ attributes: { POSITION: 0, NORMAL: 1 }, indices: 2 }] }],
+    buffers: [{ byteLength: bin.length }],
+    bufferViews: [
+      { buffer: 0, byteOffset: 0, byteLength: 48 },
+      { buffer: 0, byteOffset: 48, byteLength: 48 },
+      { buffer: 0, byteOffset: 96, byteLength: 12 },
+    ],
+    accessors: [
+      { bufferView: 0, componentType: 5126, count: 4, type: 'VEC3', min, max },
+      { bufferView: 1, componentType: 5126, count: 4, type: 'VEC3' },
+      { bufferView: 2, componentType: 5123, count: 6, type: 'SCALAR' },
+    ],
+  };
+  writeFileSync(path, writeGlb(json, bin));
+  return path;
+}
+
+/** Pixels of a grid over the canvas, every `step` pixels. */
+function grid(page, step) {
+  return page.evaluate(() => window.aobakeViewer.size()).then(([w, h]) => {
+    const out = [];
+    for (let y = step / 2; y < h; y += step) {
+      for (let x = step / 2; x < w; x += step) out.push([Math.floor(x), Math.floor(y)]);
+    }
+    return out;
+  });
+}
+
+function probe(page, debug, pixels) {
+  return page.evaluate(([d, p]) => window.aobakeViewer.probe(d, p), [debug, pixels]);
+}
+
+/** The decoded lightmap of a baked file: the extension and its 4 images. */
+function decoded(path) {
+  const glb = readGlb(readFileSync(path));
+  const exts = lightmapOf(glb);
+  assert.ok(exts.length > 0, `${path} has baked primitives`);
+  // One atlas page: every primitive names the same textures and ranges.
+  for (const e of exts) assert.deepEqual(e.shScale, exts[0].shScale);
+  const ext = exts[0];
+  const images = [ext.occlusion, ...ext.sh].map((r) => textureImage(glb, r.index));
+  return { glb, ext, images };
+}
+
+/** Whether a canvas screenshot shows something: not one flat colour. */
+async function canvasShowsSomething(page) {
+  const png = await page.locator('#view').screenshot();
+  const { PNG } = await import('pngjs');
+  const img = PNG.sync.read(png);
+  const first = img.data.readUInt32BE(0);
+  let differ = 0;
+  for (let o = 0; o < img.data.length; o += 4) differ += img.data.readUInt32BE(o) !== first;
+  return { nonBlank: !(first === 0 && differ === 0), varied: differ > img.data.length / 4 / 100 };
+}
+
+before(async () => {
+  files.cornell = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell.glb'),
+    ['--resolution', '256', '--rays', '64']);
+  files.sponza = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza.glb'),
+    ['--resolution', '512', '--rays', '16']);
+  files.plane = bake(tiltedPlane(join(dir, 'plane_in.glb')), join(dir, 'plane.glb'),
+    ['--resolution', '64', '--rays', '4096']);
+  server = await serve(files.cornell);
+  browser = await launch();
+});
+
+after(async () => {
+  await browser?.close();
+  server?.stop();
+});
+
+describe('uniform white environment: the relit irradiance is the baked AO', () => {
+  for (const name of ['cornell', 'sponza']) {
+    test(name, async () => {
+      const page = await open(browser, server.url);
+      const status = await pick(page, files[name]);
+      assert.equal(status.problems.length, 0, status.message);
+      assert.ok(status.baked > 0);
+      // L0 of a uniform radiance 1 is 2 sqrt(pi); nothing else.
+      const L = await page.evaluate(() => window.aobakeViewer.setEnvironment('white'));
+      assert.ok(Math.abs(L[0][0] - 2 * Math.sqrt(Math.PI)) < 1e-3, `L0 = ${L[0][0]}`);
+      for (let i = 1; i < 9; i++) assert.ok(Math.abs(L[i][0]) < 1e-3, `L${i} = ${L[i][0]}`);
+      const pixels = await grid(page, 8);
+      const irr = await probe(page, 'irradiance', pixels);
+      const ao = await probe(page, 'ao', pixels);
+      const { ext } = decoded(files[name]);
+      // 8-bit quantization: half a step of the AO texture and half a step
+      // of c0's range (shScale[0]) times L0 / 0.282095 in AO units.
+      const tol = 0.5 / 255 + (0.5 / 255) * ext.shScale[0] * (2 * Math.sqrt(Math.PI)) + 1e-4;
+      let n = 0;
+      let worst = 0;
+      for (let k = 0; k < pixels.length; k++) {
+        if (irr[k][3] !== 1 || ao[k][3] !== 1) continue;
+        n++;
+        worst = Math.max(worst, Math.abs(irr[k][0] - ao[k][0]));
+        assert.ok(Math.abs(irr[k][0] - irr[k][2]) < 1e-5, 'a white environment relights grey');
+      }
+      assert.ok(n > 500, `${n} probe pixels on baked geometry`);
+      console.log(`# ${name}: white environment, ${n} pixels, max |irradiance - AO| = ${worst.toFixed(5)} (tolerance ${tol.toFixed(5)})`);
+      assert.ok(worst <= tol, `max difference ${worst} > ${tol}`);
+      assert.deepEqual(page.errors, []);
+      await page.close();
+    });
+  }
+});
+
+describe('directional environments relight as the decoded textures predict', () => {
+  const lobes = { 'lobe+x': [1, 0, 0], 'lobe-x': [-1, 0, 0], 'lobe+y': [0, 1, 0], 'lobe-y': [0, -1, 0] };
+  test('Cornell box, +X, -X, +Y, -Y', async () => {
+    const page = await open(browser, server.url);
+    await pick(page, files.cornell);
+    const { ext, images } = decoded(files.cornell);
+    const pixels = await grid(page, 10);
+    const uv = await probe(page, 'uv', pixels);
+    const thirds = {};
+    for (const [name, d] of Object.entries(lobes)) {
+      const pageL = await page.evaluate((n) => window.aobakeViewer.setEnvironment(n), name);
+      // The test's own projection of the same lobe, 3 max(0, w.d)^4.
+      const L = projectScalar((w) => 3 * Math.max(0, w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) ** 4);
+      const scale = Math.max(...L.map(Math.abs));
+      for (let i = 0; i < 9; i++) {
+        assert.ok(Math.abs(pageL[i][0] - L[i]) < 2e-3 * scale, `${name} L${i}: page ${pageL[i][0]}, test ${L[i]}`);
+      }
+      const irr = await probe(page, 'irradiance', pixels);
+      // Quantization of each c_i: half a step of its range, times |L_i|.
+      const tol = ext.shScale.reduce((s, r, i) => s + (0.5 / 255) * r * Math.abs(L[i]), 0) + 1e-3;
+      let n = 0;
+      let worst = 0;
+      const side = { left: [0, 0], right: [0, 0] };
+      const [w] = await page.evaluate(() => window.aobakeViewer.size());
+      for (let k = 0; k < pixels.length; k++) {
+        if (irr[k][3] !== 1 || uv[k][3] !== 1) continue;
+        const c = coefficientsAt(images, ext, uv[k][0], uv[k][1]);
+        const expected = c.reduce((s, ci, i) => s + ci * L[i], 0);
+        worst = Math.max(worst, Math.abs(irr[k][0] - expected));
+        n++;
+        const x = pixels[k][0];
+        if (x < w / 3) side.left = [side.left[0] + irr[k][0], side.left[1] + 1];
+        if (x > (2 * w) / 3) side.right = [side.right[0] + irr[k][0], side.right[1] + 1];
+      }
+      assert.ok(n > 500, `${n} probe pixels`);
+      console.log(`# cornell ${name}: ${n} pixels, max |GPU - CPU relight| = ${worst.toFixed(5)} (tolerance ${tol.toFixed(5)})`);
+      assert.ok(worst <= tol, `${name}: max difference ${worst} > ${tol}`);
+      thirds[name] = [side.left[0] / side.left[1], side.right[0] / side.right[1]];
+    }
+    // The red wall (left, facing +X) is lit from +X, the green one (right,
+    // facing -X) from -X: the walls swap brightness.
+    const [lp, rp] = thirds['lobe+x'];
+    const [lm, rm] = thirds['lobe-x'];
+    console.log(`# cornell walls: +X left ${lp.toFixed(3)} right ${rp.toFixed(3)}; -X left ${lm.toFixed(3)} right ${rm.toFixed(3)}`);
+    assert.ok(lp > rp + 0.05 && rm > lm + 0.05, JSON.stringify(thirds));
+    assert.deepEqual(page.errors, []);
+    await page.close();
+  });
+
+  test('an open receiver relights exactly as three.js LightProbe does', async () => {
+    // A tilted plane with nothing around it: AO 1 everywhere, so
+    // pi sum_i c_i L_i must equal three's own probe irradiance at its normal
+    // (basis order, signs and the 1/pi scale of the contract against three's).
+    const page = await open(browser, server.url);
+    const status = await pick(page, files.plane);
+    assert.equal(status.baked, 1, status.message);
+    await page.evaluate(() => window.aobakeViewer.view([1.2, 1.6, 1.5], [0, 0, 0]));
+    const { ext } = decoded(files.plane);
+    for (const env of ['sky', 'sunset', 'lobe+x', 'lobe-y']) {
+      const L = await page.evaluate((e) => window.aobakeViewer.setEnvironment(e, 30), env);
+      const pixels = await grid(page, 12);
+      const irr = await probe(page, 'irradiance', pixels);
+      const three = await probe(page, 'probe', pixels);
+      let n = 0;
+      let worst = 0;
+      const tol = [0, 1, 2].map(
+        (ch) => ext.shScale.reduce((s, r, i) => s + (0.5 / 255) * r * Math.abs(L[i][ch]), 0) + 1e-3,
+      );
+      for (let k = 0; k < pixels.length; k++) {
+        if (irr[k][3] !== 1) continue;
+        n++;
+        for (let ch = 0; ch < 3; ch++) {
+          const d = Math.abs(irr[k][ch] - three[k][ch]);
+          worst = Math.max(worst, d);
+          assert.ok(d <= tol[ch], `${env} channel ${ch}: ours ${irr[k][ch]}, three ${three[k][ch]}`);
+        }
+      }
+      assert.ok(n > 200, `${n} pixels on the plane`);
+      console.log(`# plane ${env}: ${n} pixels, max |ours - three LightProbe| = ${worst.toFixed(5)}`);
+    }
+    // Shaded, SH relighting of an open receiver is three's own probe
+    // lighting ('off'): the pi of E = pi sum_i c_i L_i, the probe's
+    // replacement and the albedo all agree.
+    await page.evaluate(() => window.aobakeViewer.setEnvironment('sunset', 30));
+    const { PNG } = await import('pngjs');
+    const shot = async (mode) => {
+      await page.evaluate((m) => window.aobakeViewer.setMode(m), mode);
+      return PNG.sync.read(await page.locator('#view').screenshot()).data;
+    };
+    const [relit, plain] = [await shot('sh'), await shot('off')];
+    let worstPixel = 0;
+    for (let o = 0; o < relit.length; o++) worstPixel = Math.max(worstPixel, Math.abs(relit[o] - plain[o]));
+    console.log(`# plane: shaded SH relighting against three's probe lighting, max difference ${worstPixel}/255`);
+    assert.ok(worstPixel <= 2, `shaded difference ${worstPixel}/255`);
+    // The open receiver's decoded c_i are the clamped cosine's A_l/pi Y_i(n).
+    const n = [0.48, 0.64, 0.6];
+    const A = [1, 2 / 3, 2 / 3, 2 / 3, 1 / 4, 1 / 4, 1 / 4, 1 / 4, 1 / 4];
+    const { images } = decoded(files.plane);
+    const c = coefficientsAt(images, ext, 0.5, 0.5);
+    const Y = basis(n);
+    for (let i = 0; i < 9; i++) {
+      assert.ok(Math.abs(c[i] - A[i] * Y[i]) < 0.01, `c${i} = ${c[i]}, open ${A[i] * Y[i]}`);
+    }
+    await page.close();
+  });
+});
+
+describe('modes', () => {
+  test('AO only and no baked light differ from SH relighting where the bake matters', async () => {
+    const page = await open(browser, server.url);
+    await pick(page, files.cornell);
+    await page.evaluate(() => window.aobakeViewer.setEnvironment('sky'));
+    const shots = {};
+    for (const mode of ['sh', 'ao', 'off']) {
+      await page.evaluate((m) => window.aobakeViewer.setMode(m), mode);
+      shots[mode] = await page.locator('#view').screenshot();
+    }
+    assert.notDeepEqual(shots.sh, shots.ao);
+    assert.notDeepEqual(shots.ao, shots.off);
+    await page.close();
+  });
+});
+
+describe('files the plugin cannot use', () => {
+  test('a GLB without the extension renders plainly, with a message', async () => {
+    const page = await open(browser, server.url);
+    const status = await pick(page, join(repoDir, 'assets/cornell_box.glb'));
+    assert.equal(status.baked, 0);
+    assert.equal(status.level, 'warn');
+    assert.match(status.message, /has no AOBAKE_lightmap/);
+    assert.ok((await canvasShowsSomething(page)).varied, 'the scene is drawn');
+    await page.close();
+  });
+
+  test('a malformed extension names the primitive and what is wrong', async () => {
+    const glb = readGlb(readFileSync(files.cornell));
+    const json = structuredClone(glb.json);
+    const prims = json.meshes.flatMap((m) => m.primitives).filter((p) => p.extensions?.AOBAKE_lightmap);
+    prims[0].extensions.AOBAKE_lightmap.sh[1].index = 999;
+    prims[1].extensions.AOBAKE_lightmap.shScale = prims[1].extensions.AOBAKE_lightmap.shScale.slice(0, 8);
+    delete prims[2].extensions.AOBAKE_lightmap.occlusion;
+    const path = join(dir, 'malformed.glb');
+    writeFileSync(path, writeGlb(json, glb.bin));
+    const page = await open(browser, server.url);
+    const status = await pick(page, path);
+    assert.equal(status.level, 'error');
+    assert.match(status.message, /sh\[1\] names textures\[999\], which does not exist/);
+    assert.match(status.message, /shScale must hold 9 numbers \(has 8\)/);
+    assert.match(status.message, /occlusion has no texture index/);
+    assert.match(status.message, /meshes\[\d+\]\.primitives\[\d+\]/);
+    assert.equal(status.baked, prims.length - 3, 'the other primitives keep their bake');
+    assert.ok((await canvasShowsSomething(page)).varied, 'the scene is drawn');
+    assert.deepEqual(page.errors, []);
+    await page.close();
+  });
+
+  test('bytes that are not glTF give a message and keep the canvas drawn', async () => {
+    const path = join(dir, 'garbage.glb');
+    writeFileSync(path, Buffer.from('this is not a glTF file at all'));
+    const page = await open(browser, server.url);
+    const status = await pick(page, path);
+    assert.equal(status.level, 'error');
+    assert.match(status.message, /does not load/);
+    assert.ok((await canvasShowsSomething(page)).nonBlank);
+    await page.close();
+  });
+});
+
+test('aobake view serves the page and the file, nothing outside the viewer', async () => {
+  const page = await open(browser, `${server.url}`);
+  const status = await page.evaluate(() => window.aobakeViewer.status());
+  assert.equal(status.level, 'info', status.message);
+  assert.ok(status.baked > 0);
+  const base = new URL(server.url).origin;
+  assert.equal((await fetch(`${base}/../Cargo.toml`)).status, 404);
+  assert.equal((await fetch(`${base}/%2e%2e/Cargo.toml`)).status, 404);
+  assert.equal((await fetch(`${base}/aobake-lightmap.js`)).status, 200);
+  await page.close();
+});
