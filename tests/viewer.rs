@@ -37,7 +37,7 @@ fn viewer_relights_bakes_in_a_real_browser() {
         return;
     }
     let out = Command::new("node")
-        .args(["--test", "--test-reporter=tap", "test/"])
+        .args(["--test", "--test-reporter=tap", "test/viewer.test.mjs"])
         .current_dir(&viewer)
         .env("AOBAKE_BIN", env!("CARGO_BIN_EXE_aobake"))
         .env("CHROMIUM", &chromium)

@@ -1,0 +1,51 @@
+// Screenshots of the viewer for the docs: the Cornell box and Sponza, each
+// relit with its SH lightmaps under two environments.
+//
+//   cargo build --release && npm ci --prefix viewer
+//   node viewer/screenshots.mjs [OUT_DIR (docs/viewer)]
+//
+// Bakes the scenes with target/release/aobake (or AOBAKE_BIN) into a
+// temporary directory, serves the viewer with `aobake view` and drives
+// headless Chromium (see test/harness.mjs).
+
+import { mkdirSync } from 'node:fs';
+import { join, resolve } from 'node:path';
+import { bake, launch, open, pick, repoDir, serve, sharedAssets, tempDir } from './test/harness.mjs';
+
+const out = resolve(process.argv[2] ?? join(repoDir, 'docs/viewer'));
+mkdirSync(out, { recursive: true });
+const dir = tempDir();
+const scenes = [
+  {
+    name: 'cornell',
+    file: bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell.glb'), ['--resolution', '512', '--rays', '256']),
+    view: null,
+  },
+  {
+    name: 'sponza',
+    file: bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza.glb'), ['--resolution', '1024', '--rays', '128']),
+    view: [[-13, 2.2, 0.8], [8, 4.5, -0.5]],
+  },
+];
+const environments = ['sky', 'sunset'];
+const server = await serve();
+const browser = await launch();
+try {
+  for (const s of scenes) {
+    const page = await open(browser, server.url, { width: 960, height: 680 });
+    const status = await pick(page, s.file);
+    if (status.problems.length > 0 || status.baked === 0) throw new Error(status.message);
+    if (s.view) await page.evaluate(([p, t]) => window.aobakeViewer.view(p, t), s.view);
+    for (const env of environments) {
+      await page.evaluate((e) => window.aobakeViewer.setEnvironment(e, 0), env);
+      await page.evaluate(() => window.aobakeViewer.setMode('sh'));
+      const path = join(out, `${s.name}_${env}.png`);
+      await page.locator('#view').screenshot({ path });
+      console.log(`wrote ${path}`);
+    }
+    await page.close();
+  }
+} finally {
+  await browser.close();
+  server.stop();
+}
