@@ -253,6 +253,32 @@ describe('directional environments relight as the decoded textures predict', () 
   });
 });
 
+test('an equirectangular image lights from where it is bright', async () => {
+  // Top half white (sRGB 255 = radiance 1), bottom half black: +Y is the
+  // image's top row, so L0 = 2 pi x 0.282095 and L(1,-1) (the y term) =
+  // pi x 0.488603; every other coefficient vanishes.
+  const { PNG } = await import('pngjs');
+  const png = new PNG({ width: 64, height: 32 });
+  for (let y = 0; y < 32; y++) {
+    for (let x = 0; x < 64; x++) {
+      const o = (y * 64 + x) * 4;
+      png.data.fill(y < 16 ? 255 : 0, o, o + 3);
+      png.data[o + 3] = 255;
+    }
+  }
+  const path = join(dir, 'half_sky.png');
+  writeFileSync(path, PNG.sync.write(png));
+  const page = await open(browser, server.url);
+  await page.setInputFiles('#envimage', path);
+  await page.waitForFunction(() => document.getElementById('env').value === 'image');
+  const L = (await page.evaluate(() => window.aobakeViewer.status())).coefficients;
+  const expected = [2 * Math.PI * 0.282095, Math.PI * 0.488603, 0, 0, 0, 0, 0, 0, 0];
+  for (let i = 0; i < 9; i++) {
+    assert.ok(Math.abs(L[i][0] - expected[i]) < 0.02, `L${i} = ${L[i][0]}, expected ${expected[i]}`);
+  }
+  await page.close();
+});
+
 describe('modes', () => {
   test('AO only and no baked light differ from SH relighting where the bake matters', async () => {
     const page = await open(browser, server.url);
