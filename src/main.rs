@@ -39,6 +39,8 @@ enum MethodArg {
     Filtered,
     /// Brute-force Monte Carlo.
     Mc,
+    /// Adaptive ray counts and an axis-aligned filter (work in progress).
+    Adaptive,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -70,6 +72,7 @@ impl From<Method> for MethodArg {
         match m {
             Method::Mc => MethodArg::Mc,
             Method::Filtered => MethodArg::Filtered,
+            Method::Adaptive => MethodArg::Adaptive,
         }
     }
 }
@@ -129,6 +132,9 @@ struct Cli {
     /// Filtered: cells with less filter weight (about that many samples) are brute-forced.
     #[arg(long, default_value_t = DEFAULTS.filter.min_weight)]
     min_weight: f32,
+    /// Adaptive: mean rays per texel over the atlas (the quality knob).
+    #[arg(long, default_value_t = DEFAULTS.adaptive.mean_rays)]
+    mean_rays: u32,
     /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.
     #[arg(long)]
     debug_dir: Option<PathBuf>,
@@ -192,7 +198,7 @@ struct ReportCli {
     /// Rays per texel of the Monte Carlo reference.
     #[arg(long, default_value_t = REPORT_DEFAULTS.reference_rays)]
     reference_rays: u32,
-    /// Runs: mc:RAYS and filtered:SPARSE_RAYS:GATHER_RADIUS[:CELL_RAYS[:OMEGA_V[:MIN_WEIGHT]]], comma-separated.
+    /// Runs: mc:RAYS, filtered:SPARSE_RAYS:GATHER_RADIUS[:CELL_RAYS[:OMEGA_V[:MIN_WEIGHT]]] and adaptive:MEAN_RAYS[:PRE_RAYS:MAX_RAYS], comma-separated.
     #[arg(long, default_value = aobake::report::DEFAULT_BUDGETS)]
     budgets: String,
     /// Random seed of the runs (the reference uses a different one).
@@ -325,6 +331,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         method: match cli.method {
             MethodArg::Mc => Method::Mc,
             MethodArg::Filtered => Method::Filtered,
+            MethodArg::Adaptive => Method::Adaptive,
         },
         rays: cli.rays,
         filter: aobake::bake::sheared::ShearedOptions {
@@ -333,6 +340,10 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             omega_v_max: cli.omega_v,
             cell_rays: cli.cell_rays,
             min_weight: cli.min_weight,
+        },
+        adaptive: aobake::bake::adaptive::AdaptiveOptions {
+            mean_rays: cli.mean_rays,
+            ..DEFAULTS.adaptive
         },
         debug_dir: cli.debug_dir.clone(),
         max_distance: cli.max_distance,

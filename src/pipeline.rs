@@ -9,6 +9,7 @@
 //! report (`aobake report`) reuses to bake one atlas many times.
 
 use crate::atlas::{self, Atlas, AtlasSize, Receivers, UnwrapOptions, dilate};
+use crate::bake::adaptive::{self, AdaptiveStats};
 use crate::bake::sheared::{self, FilterStats};
 use crate::bake::{Bake, BakeParams, mc, validity};
 use crate::encode::{self, Encoded, Lightmap};
@@ -47,6 +48,9 @@ pub struct Report {
     /// Filtered method only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub filter: Option<FilterReport>,
+    /// Adaptive method only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub adaptive: Option<AdaptiveReport>,
     /// Rays cast over the seconds of the method's passes.
     pub rays_per_second: f64,
     pub max_distance: f64,
@@ -85,6 +89,36 @@ pub struct FilterReport {
     pub mean_neighbours: f64,
 }
 
+/// The adaptive method's figures in the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct AdaptiveReport {
+    pub pre_rays_per_texel: u32,
+    pub mean_rays_setting: u32,
+    pub pre_pass_rays: u64,
+    pub adaptive_rays: u64,
+    /// (rays per texel, texels) for every count used.
+    pub rays_per_texel_histogram: Vec<(u32, usize)>,
+    /// Fraction of texels filtered (sigma of at least half a texel).
+    pub texels_filtered: f64,
+    pub mean_sigma_texels: f64,
+}
+
+impl AdaptiveReport {
+    fn new(o: &adaptive::AdaptiveOptions, a: &AdaptiveStats) -> AdaptiveReport {
+        let n = a.rays.len().max(1) as f64;
+        let filtered = a.sigma_texels.iter().filter(|&&s| s > 0.0);
+        AdaptiveReport {
+            pre_rays_per_texel: o.pre_rays,
+            mean_rays_setting: o.mean_rays,
+            pre_pass_rays: a.pre_rays,
+            adaptive_rays: a.adaptive_rays,
+            rays_per_texel_histogram: a.ray_histogram(),
+            texels_filtered: filtered.clone().count() as f64 / n,
+            mean_sigma_texels: filtered.map(|&s| s as f64).sum::<f64>() / n,
+        }
+    }
+}
+
 impl FilterReport {
     fn new(s: &sheared::ShearedOptions, f: &FilterStats) -> FilterReport {
         let texels = f.brute_fraction.len().max(1) as f64;
@@ -114,6 +148,8 @@ pub struct Baked {
     pub bake: Bake,
     /// Filtered method only.
     pub filter_stats: Option<FilterStats>,
+    /// Adaptive method only.
+    pub adaptive_stats: Option<AdaptiveStats>,
     pub lightmap: Lightmap,
     pub encoded: Encoded,
     pub glb: Vec<u8>,
@@ -141,6 +177,8 @@ pub struct BakePasses {
     pub bake: Bake,
     /// Filtered method only.
     pub filter_stats: Option<FilterStats>,
+    /// Adaptive method only.
+    pub adaptive_stats: Option<AdaptiveStats>,
     /// The method's own passes: `trace` (Monte Carlo), or `sparse pass` and
     /// `filter pass` (filtered).
     pub stages: Vec<StageTime>,
@@ -226,6 +264,7 @@ fn bake_loaded(
     let BakePasses {
         bake,
         filter_stats,
+        adaptive_stats,
         stages: pass_stages,
     } = passes;
     let Prepared {
@@ -255,6 +294,9 @@ fn bake_loaded(
         filter: filter_stats
             .as_ref()
             .map(|f| FilterReport::new(&s.filter, f)),
+        adaptive: adaptive_stats
+            .as_ref()
+            .map(|a| AdaptiveReport::new(&s.adaptive, a)),
         rays_per_second: if pass_seconds > 0.0 {
             bake.rays as f64 / pass_seconds
         } else {
@@ -273,6 +315,7 @@ fn bake_loaded(
         receivers,
         bake,
         filter_stats,
+        adaptive_stats,
         lightmap,
         encoded,
         glb,
@@ -388,22 +431,35 @@ pub fn bake_prepared(p: &Prepared, s: &Settings, timer: &mut StageTimer) -> Resu
     timer.restart();
     let pb = progress_bar(s.progress, receivers.len() as u64, "baking");
     let progress = |n| pb.inc(n);
-    let (bake, filter_stats) = match s.method {
+    let (bake, filter_stats, adaptive_stats) = match s.method {
         Method::Mc => {
             let b = mc::bake(receivers, tracer, s.rays, &params, &progress);
             timer.lap("trace");
-            (b, None)
+            (b, None, None)
         }
         Method::Filtered => {
             let (b, stats) =
                 sheared::bake(receivers, tracer, &s.filter, &params, timer, &progress)?;
-            (b, Some(stats))
+            (b, Some(stats), None)
+        }
+        Method::Adaptive => {
+            let (b, stats) = adaptive::bake(
+                receivers,
+                tracer,
+                &p.inside,
+                &s.adaptive,
+                &params,
+                timer,
+                &progress,
+            );
+            (b, None, Some(stats))
         }
     };
     pb.finish_and_clear();
     Ok(BakePasses {
         bake,
         filter_stats,
+        adaptive_stats,
         stages: timer.since(first).to_vec(),
     })
 }
@@ -421,8 +477,13 @@ pub fn output(
 ) -> Result<Output> {
     timer.restart();
     let receivers = &p.receivers;
-    if let (Some(dir), Some(stats)) = (&s.debug_dir, &passes.filter_stats) {
-        encode::write_grey_maps(dir, receivers, &stats.debug_maps(p.max_distance))?;
+    if let Some(dir) = &s.debug_dir {
+        if let Some(stats) = &passes.filter_stats {
+            encode::write_grey_maps(dir, receivers, &stats.debug_maps(p.max_distance))?;
+        }
+        if let Some(stats) = &passes.adaptive_stats {
+            encode::write_grey_maps(dir, receivers, &stats.debug_maps(p.max_distance))?;
+        }
     }
     let fill = dilate::fill_map(
         receivers.width,
@@ -444,6 +505,7 @@ pub fn output(
             rays: match s.method {
                 Method::Mc => s.rays,
                 Method::Filtered => s.filter.sparse_rays,
+                Method::Adaptive => s.adaptive.mean_rays,
             },
             seed: s.seed,
             max_distance: p.max_distance_world,

@@ -10,6 +10,7 @@
 //! line shows the flag instead (`--sparse-rays`).
 
 use crate::atlas::{AtlasSize, Packing};
+use crate::bake::adaptive::AdaptiveOptions;
 use crate::bake::sheared::ShearedOptions;
 use crate::error::{Error, Result};
 use crate::gltf::write::OcclusionMode;
@@ -45,6 +46,9 @@ pub enum Method {
     Filtered,
     /// Brute-force Monte Carlo ([`crate::bake::mc`]).
     Mc,
+    /// Adaptive ray counts and an axis-aligned filter
+    /// ([`crate::bake::adaptive`]).
+    Adaptive,
 }
 
 impl Method {
@@ -52,6 +56,7 @@ impl Method {
         match self {
             Method::Filtered => "filtered",
             Method::Mc => "mc",
+            Method::Adaptive => "adaptive",
         }
     }
 }
@@ -78,6 +83,8 @@ pub struct Settings {
     pub rays: u32,
     /// Options of the filtered method.
     pub filter: ShearedOptions,
+    /// Options of the adaptive method.
+    pub adaptive: AdaptiveOptions,
     /// Write diagnostic PNG maps here.
     pub debug_dir: Option<PathBuf>,
     /// World units; `None`: [`DEFAULT_MAX_DISTANCE_FRACTION`] of the diagonal.
@@ -102,6 +109,7 @@ impl Default for Settings {
             method: Method::Mc,
             rays: DEFAULT_RAYS,
             filter: ShearedOptions::default(),
+            adaptive: AdaptiveOptions::default(),
             debug_dir: None,
             max_distance: None,
             seed: 0,
@@ -123,6 +131,7 @@ impl Settings {
             }
             Method::Mc => {}
             Method::Filtered => self.filter.validate()?,
+            Method::Adaptive => self.adaptive.validate()?,
         }
         crate::atlas::unwrap::check_size(self.size)?;
         if let Some(d) = self.max_distance
@@ -151,6 +160,7 @@ pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
         + match s.method {
             Method::Mc => 0,
             Method::Filtered => s.filter.bytes_per_texel(),
+            Method::Adaptive => s.adaptive.bytes_per_texel(),
         };
     texels * per_texel
 }

@@ -83,20 +83,6 @@ fn parallel_plane_matches_closed_form() {
     assert!((mean - 0.25).abs() < 0.03, "filtered AO {mean} vs 0.25");
 }
 
-/// A floor with a thin double-faced wall standing on it, and a low
-/// overhanging slab on one side only: the side under the slab is dark, the
-/// other side open. A filter that lends rays across the wall brightens the
-/// covered side or darkens the open one.
-fn thin_wall_scene() -> Vec<u8> {
-    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
-    // The wall at x = 0, 2 mm thick, both faces modelled.
-    let wall_a = quad([-0.001, 0.0, 0.3], [0.0, 1.0, 0.0], [0.0, 0.0, 0.3], true);
-    let wall_b = quad([0.001, 0.0, 0.3], [0.0, 0.0, 0.3], [0.0, 1.0, 0.0], true);
-    // A slab over the x < 0 side at height 0.08, facing down.
-    let slab = quad([-0.5, 0.0, 0.08], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0], true);
-    glb(&[floor, wall_a, wall_b, slab], plain_nodes(4))
-}
-
 #[test]
 fn no_leak_across_a_thin_wall() {
     let g = thin_wall_scene();
@@ -228,13 +214,6 @@ fn tilted_shading_normals_match_brute_force() {
         mean(&f.bake.ao),
         mean(&mc.bake.ao)
     );
-}
-
-/// A unit floor with a wall standing on it at x = 0.3 (0.5 high).
-fn floor_and_wall() -> aobake::gltf::Scene {
-    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
-    let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 1.0, 0.0], true);
-    scene(&glb(&[floor, wall], plain_nodes(2)))
 }
 
 /// A bake without the inside fill (raw values are compared).

@@ -6,6 +6,8 @@
 //! coefficients (1/pi) Int V max(0, n.w) Y_i(w) dw.
 //!
 //! - [`mc`]: brute-force Monte Carlo, the reference method;
+//! - [`adaptive`]: adaptive ray counts and an axis-aligned filter of the
+//!   integrated values (work in progress);
 //! - [`sheared`]: the sheared filter of Egan et al. 2011 (`--method
 //!   filtered`), sparse rays shared between neighbouring receivers;
 //! - [`validity`]: which receivers lie inside or behind geometry (run
@@ -16,6 +18,7 @@
 //! its own scrambled Sobol sequence), so every pass of every method draws
 //! from the same sequences and results do not depend on thread count.
 
+pub mod adaptive;
 pub mod mc;
 pub mod sheared;
 pub mod validity;

@@ -3,6 +3,7 @@
 //! In: a list such as `mc:64,filtered:8:4`. Out: [`Budget`]s, each a
 //! method and its options, and the [`Settings`] a run bakes with.
 
+use crate::bake::adaptive::{AdaptiveOptions, MAX_ADAPTIVE_RAYS};
 use crate::bake::sheared::{MAX_FILTER_RAYS, ShearedOptions};
 use crate::error::{Error, Result};
 use crate::settings::{DEFAULT_RAYS, Method, Settings};
@@ -22,10 +23,12 @@ pub struct Budget {
     /// Monte Carlo rays per texel (Monte Carlo only).
     pub rays: u32,
     pub filter: ShearedOptions,
+    pub adaptive: AdaptiveOptions,
 }
 
 impl Budget {
-    /// `mc:N` or `filtered:K:R[:C[:O[:W]]]` (sparse rays, gather radius,
+    /// `mc:N`, `adaptive:MEAN[:PRE[:MAX]]` (mean rays per texel, pre-pass
+    /// rays, most rays per texel) or `filtered:K:R[:C[:O[:W]]]` (sparse rays, gather radius,
     /// rays per brute-forced cell, Omega_v, min weight).
     pub fn label(&self) -> String {
         match self.method {
@@ -41,6 +44,15 @@ impl Budget {
                 }
                 s
             }
+            Method::Adaptive => {
+                let a = &self.adaptive;
+                let d = AdaptiveOptions::default();
+                let mut s = format!("adaptive:{}", a.mean_rays);
+                if (a.pre_rays, a.max_rays) != (d.pre_rays, d.max_rays) {
+                    s += &format!(":{}:{}", a.pre_rays, a.max_rays);
+                }
+                s
+            }
         }
     }
 
@@ -48,6 +60,7 @@ impl Budget {
         match self.method {
             Method::Mc => self.rays == TARGET_RAYS,
             Method::Filtered => self.filter == ShearedOptions::default(),
+            Method::Adaptive => self.adaptive == AdaptiveOptions::default(),
         }
     }
 }
@@ -59,6 +72,7 @@ impl Budget {
             method: Method::Mc,
             rays,
             filter: ShearedOptions::default(),
+            adaptive: AdaptiveOptions::default(),
         }
     }
 
@@ -68,6 +82,7 @@ impl Budget {
             method: Method::Filtered,
             rays: 0,
             filter: ShearedOptions::default(),
+            adaptive: AdaptiveOptions::default(),
         }
     }
 
@@ -77,6 +92,7 @@ impl Budget {
             method: self.method,
             rays: self.rays,
             filter: self.filter,
+            adaptive: self.adaptive,
             seed,
             ..base.clone()
         }
@@ -145,12 +161,46 @@ pub fn parse_budgets(text: &str) -> Result<Vec<Budget>> {
                     method: Method::Filtered,
                     rays: 0,
                     filter: f,
+                    adaptive: AdaptiveOptions::default(),
+                }
+            }
+            "adaptive" => {
+                if parts.len() > 4 {
+                    return Err(bad(item, "expected adaptive:MEAN[:PRE[:MAX]]"));
+                }
+                let whole = |i: usize| -> Result<Option<u32>> {
+                    match num(i)? {
+                        Some(v) if v.fract() == 0.0 && v <= MAX_ADAPTIVE_RAYS as f64 => {
+                            Ok(Some(v as u32))
+                        }
+                        Some(_) => Err(bad(
+                            item,
+                            &format!("ray counts must be whole numbers up to {MAX_ADAPTIVE_RAYS}"),
+                        )),
+                        None => Ok(None),
+                    }
+                };
+                let mut a = AdaptiveOptions::default();
+                if let Some(m) = whole(1)? {
+                    a.mean_rays = m;
+                }
+                if let Some(p) = whole(2)? {
+                    a.pre_rays = p;
+                }
+                if let Some(m) = whole(3)? {
+                    a.max_rays = m;
+                }
+                Budget {
+                    method: Method::Adaptive,
+                    rays: 0,
+                    filter: ShearedOptions::default(),
+                    adaptive: a,
                 }
             }
             other => {
                 return Err(bad(
                     item,
-                    &format!("unknown method '{other}' (mc or filtered)"),
+                    &format!("unknown method '{other}' (mc, filtered or adaptive)"),
                 ));
             }
         };

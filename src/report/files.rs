@@ -127,6 +127,19 @@ pub fn error_vs_time(r: &SweepReport) -> Plot {
                 "filtered (sparse rays : gather radius)",
                 e.and_then(|e| e.filtered_seconds),
             ),
+            curve(
+                Method::Adaptive,
+                "adaptive (mean rays per texel)",
+                e.and_then(|e| {
+                    let points: Vec<(f64, f64)> = r
+                        .runs
+                        .iter()
+                        .filter(|x| x.method == Method::Adaptive)
+                        .map(|x| (x.end_to_end_seconds, x.ao.rmse))
+                        .collect();
+                    super::metrics::cost_at_error(&points, e.target_ao_rmse)
+                }),
+            ),
         ],
         target: e.map(|e| Target {
             error: e.target_ao_rmse,

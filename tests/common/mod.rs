@@ -198,3 +198,24 @@ pub fn add_texcoord1(json: &mut Value, bin: &mut Vec<u8>, uvs: &[[f32; 2]], mesh
     }
     json["buffers"][0]["byteLength"] = json!(bin.len());
 }
+
+/// A floor with a thin double-faced wall standing on it, and a low
+/// overhanging slab on one side only: the side under the slab is dark, the
+/// other side open. A filter that lends rays across the wall brightens the
+/// covered side or darkens the open one.
+pub fn thin_wall_scene() -> Vec<u8> {
+    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    // The wall at x = 0, 2 mm thick, both faces modelled.
+    let wall_a = quad([-0.001, 0.0, 0.3], [0.0, 1.0, 0.0], [0.0, 0.0, 0.3], true);
+    let wall_b = quad([0.001, 0.0, 0.3], [0.0, 0.0, 0.3], [0.0, 1.0, 0.0], true);
+    // A slab over the x < 0 side at height 0.08, facing down.
+    let slab = quad([-0.5, 0.0, 0.08], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0], true);
+    glb(&[floor, wall_a, wall_b, slab], plain_nodes(4))
+}
+
+/// A unit floor with a wall standing on it at x = 0.3 (0.5 high).
+pub fn floor_and_wall() -> aobake::gltf::Scene {
+    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 1.0, 0.0], true);
+    scene(&glb(&[floor, wall], plain_nodes(2)))
+}

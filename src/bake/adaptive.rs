@@ -1,0 +1,755 @@
+//! Adaptive sampling with an axis-aligned filter (`--method adaptive`):
+//! the cheap form of Egan et al.'s frequency analysis, after Mehta, Wang
+//! and Ramamoorthi 2012/2013 (see `shared/notes/axis-aligned-filtering.md`).
+//! Work in progress: not the default until `aobake report` says so.
+//!
+//! In: [`Receivers`] with their `inside` marks, a [`Tracer`],
+//! [`AdaptiveOptions`], [`BakeParams`], the [`StageTimer`]. Out: a [`Bake`]
+//! and [`AdaptiveStats`].
+//!
+//! 1. *Pre-pass*: `pre_rays` closest-hit rays per receiver, the first points
+//!    of its own sequence (the Monte Carlo baker's, stream 0): z_min and
+//!    z_max of the hits within the max distance, the visible count and the
+//!    visible rays' SH sums.
+//! 2. *Bounds*: z_min spread to the minimum over the compatible receivers
+//!    within `max_reach` texels in the atlas (rows, then columns), so an
+//!    open-looking receiver beside occluded ones is not filtered wide.
+//!    Filter width sigma = z_min / (2 mu Omega_h) (occlusion from occluders
+//!    at >= z_min is bandlimited in space at Omega_h / z_min), at most
+//!    `max_reach / 2` texels; below half a texel (contact) no filtering.
+//! 3. *Ray counts*: each receiver's total in proportion to
+//!    sd / sqrt(N_eff) (sd of the pre-pass visibility, N_eff ~ 4 pi
+//!    sigma^2 texels averaged by its filter), scaled so the mean is
+//!    `mean_rays`, rounded to powers of two (whole Sobol blocks keep the
+//!    stratification) in [`pre_rays`, `max_rays`]; the second batch
+//!    continues the receiver's sequence. A receiver whose neighbourhood
+//!    saw nothing stops at the pre-pass.
+//! 4. *Filter*: each receiver's integrated AO and 9 SH values averaged
+//!    over its atlas neighbours with Gaussian weights on the offset in its
+//!    tangent plane, rows then columns
+//!    (separable), through the leak rule ([`lends_rays`]), within z_min of
+//!    the receiver; texels inside geometry neither receive nor lend. The
+//!    same weights for all 10 values keep the SH a convex combination of
+//!    valid projections.
+
+use super::sheared::lends_rays;
+use super::{Bake, BakeParams, ReceiverRays};
+use crate::atlas::Receivers;
+use crate::error::{Error, Result};
+use crate::sh::{self, SH_COUNT};
+use crate::stage::StageTimer;
+use crate::trace::Tracer;
+use rayon::prelude::*;
+
+/// Options of the adaptive method.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdaptiveOptions {
+    /// Closest-hit rays per receiver in the pre-pass (a power of two).
+    pub pre_rays: u32,
+    /// The quality knob: mean rays per texel over the whole atlas.
+    pub mean_rays: u32,
+    /// Most rays one receiver gets (a power of two).
+    pub max_rays: u32,
+    /// Expert: the spatial bandlimit constant Omega_h (sigma = z_min / (2
+    /// mu Omega_h)).
+    pub omega_h: f32,
+    /// Expert: mu, how far inside the bandlimit the filter stays.
+    pub mu: f32,
+    /// Widest filter reach in texels (2 sigma).
+    pub max_reach: u32,
+}
+
+impl Default for AdaptiveOptions {
+    fn default() -> Self {
+        AdaptiveOptions {
+            pre_rays: 16,
+            mean_rays: 64,
+            max_rays: 512,
+            omega_h: 2.8,
+            mu: 0.7,
+            max_reach: 8,
+        }
+    }
+}
+
+/// Largest `max_rays` and `mean_rays`.
+pub const MAX_ADAPTIVE_RAYS: u32 = 4096;
+/// Largest `max_reach` in texels.
+pub const MAX_REACH: u32 = 32;
+
+impl AdaptiveOptions {
+    /// Checks every option's range.
+    pub fn validate(&self) -> Result<()> {
+        let pow2 = |v: u32| v.is_power_of_two() && v <= MAX_ADAPTIVE_RAYS;
+        if !pow2(self.pre_rays) {
+            return Err(Error::option(
+                "pre_rays",
+                format!(
+                    "{} must be a power of two up to {MAX_ADAPTIVE_RAYS}",
+                    self.pre_rays
+                ),
+            ));
+        }
+        if !pow2(self.max_rays) || self.max_rays < self.pre_rays {
+            return Err(Error::option(
+                "max_rays",
+                format!(
+                    "{} must be a power of two in {}..={MAX_ADAPTIVE_RAYS}",
+                    self.max_rays, self.pre_rays
+                ),
+            ));
+        }
+        if !(self.pre_rays..=self.max_rays).contains(&self.mean_rays) {
+            return Err(Error::option(
+                "mean_rays",
+                format!(
+                    "{} is outside {}..={} (pre_rays..=max_rays)",
+                    self.mean_rays, self.pre_rays, self.max_rays
+                ),
+            ));
+        }
+        for (name, v) in [("omega_h", self.omega_h), ("mu", self.mu)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::option(name, format!("{v} must be finite and > 0")));
+            }
+        }
+        if self.max_reach > MAX_REACH {
+            return Err(Error::option(
+                "max_reach",
+                format!("{} is outside 0..={MAX_REACH} texels", self.max_reach),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Bytes per atlas texel beyond what every method holds: per-receiver
+    /// sums (AO, SH, rays: 44 B), bounds and widths (16 B), the texel map
+    /// (4 B) and the filter's row pass (44 B).
+    pub fn bytes_per_texel(&self) -> u64 {
+        108
+    }
+}
+
+/// What the adaptive bake did.
+#[derive(Clone, Debug, Default)]
+pub struct AdaptiveStats {
+    pub pre_rays: u64,
+    pub adaptive_rays: u64,
+    /// Per receiver: rays cast, spread z_min (bake units, INFINITY if
+    /// none), filter sigma in texels (0: not filtered).
+    pub rays: Vec<u32>,
+    pub z_min: Vec<f32>,
+    pub sigma_texels: Vec<f32>,
+}
+
+impl AdaptiveStats {
+    /// Receivers per ray count (power of two), ascending.
+    pub fn ray_histogram(&self) -> Vec<(u32, usize)> {
+        let mut h: std::collections::BTreeMap<u32, usize> = Default::default();
+        for &r in &self.rays {
+            *h.entry(r).or_default() += 1;
+        }
+        h.into_iter().collect()
+    }
+
+    /// The `--debug-dir` maps, each in [0, 1]: `z_min` (spread, over the max
+    /// distance), `rays_per_texel` (over the most any texel got) and
+    /// `filter_sigma` (over the widest).
+    pub fn debug_maps(&self, max_distance: f32) -> Vec<(&'static str, Vec<f32>)> {
+        let most = self.rays.iter().copied().max().unwrap_or(1).max(1) as f32;
+        let widest = self.sigma_texels.iter().copied().fold(0.0f32, f32::max);
+        let widest = if widest > 0.0 { widest } else { 1.0 };
+        vec![
+            (
+                "z_min",
+                self.z_min
+                    .iter()
+                    .map(|&z| (z / max_distance).min(1.0))
+                    .collect(),
+            ),
+            (
+                "rays_per_texel",
+                self.rays.iter().map(|&r| r as f32 / most).collect(),
+            ),
+            (
+                "filter_sigma",
+                self.sigma_texels.iter().map(|&s| s / widest).collect(),
+            ),
+        ]
+    }
+}
+
+/// One receiver's running sums.
+#[derive(Clone, Copy, Debug, Default)]
+struct Sums {
+    visible: u32,
+    sh: [f32; SH_COUNT],
+    rays: u32,
+}
+
+/// Filter sigma in world units for an occluder depth bound: z_min / (2 mu
+/// Omega_h); infinite for no occluder, 0 for contact or NaN.
+#[inline]
+pub fn filter_sigma(z_min: f32, mu: f32, omega_h: f32) -> f32 {
+    let s = z_min / (2.0 * mu * omega_h);
+    if s.is_nan() || s <= 0.0 { 0.0 } else { s }
+}
+
+/// A lower bound of the distance to the occluder a ray hit at distance `t`
+/// along unit `d`: the distance to the plane of the hit triangle,
+/// t |d . n_hit| (16 rays seldom hit an occluder's nearest point; the hit
+/// distance alone overestimates z_min and filters a contact shadow wide).
+#[inline]
+pub fn occluder_depth(t: f32, d: glam::Vec3, hit_normal: glam::Vec3) -> f32 {
+    let z = t * d.dot(hit_normal).abs();
+    if z.is_nan() { 0.0 } else { z.max(0.0) }
+}
+
+/// Texels a 2D Gaussian of `sigma_texels` averages with equal effect:
+/// (sum w)^2 / sum w^2 = 4 pi sigma^2 on a unit lattice, at least 1.
+#[inline]
+pub fn effective_neighbours(sigma_texels: f32) -> f32 {
+    (4.0 * std::f32::consts::PI * sigma_texels * sigma_texels).max(1.0)
+}
+
+/// The standard deviation of one ray's visibility from `visible` of
+/// `rays` (smoothed so that all or none visible is not certainty).
+#[inline]
+pub fn visibility_sd(visible: u32, rays: u32) -> f32 {
+    let p = (visible as f32 + 0.5) / (rays as f32 + 1.0);
+    (p * (1.0 - p)).sqrt()
+}
+
+/// The power of two nearest `n` (in log scale) within [lo, hi].
+#[inline]
+pub fn power_of_two_rays(n: f32, lo: u32, hi: u32) -> u32 {
+    if n.is_nan() || n <= lo as f32 {
+        return lo;
+    }
+    let k = n.log2().round().clamp(0.0, 31.0) as u32;
+    (1u32 << k).clamp(lo, hi)
+}
+
+/// Ray counts for `demand` (per receiver; 0: pre-pass only) whose mean over
+/// all receivers is about `mean`: counts = power_of_two(scale x demand),
+/// with the scale found by bisection.
+pub fn allocate(demand: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
+    let n = demand.len().max(1) as f64;
+    let counts = |scale: f32| -> Vec<u32> {
+        demand
+            .iter()
+            .map(|&d| {
+                if d > 0.0 {
+                    power_of_two_rays(scale * d, o.pre_rays, o.max_rays)
+                } else {
+                    o.pre_rays
+                }
+            })
+            .collect()
+    };
+    let mean = |c: &[u32]| c.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let (mut lo, mut hi) = (0.0f32, 1.0f32);
+    while mean(&counts(hi)) < o.mean_rays as f64 && hi < 1e12 {
+        hi *= 2.0;
+    }
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if mean(&counts(mid)) < o.mean_rays as f64 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    counts(lo)
+}
+
+/// Receivers per parallel work item.
+const CHUNK: usize = 64;
+
+/// Normal agreement of the z_min spread (cos 25 degrees, the leak rule's).
+const SPREAD_AGREEMENT: f32 = 0.906;
+
+/// The adaptive bake (see the module doc). `inside[r]`: receiver r lies
+/// inside geometry ([`super::validity`]). Options validated. Laps:
+/// `pre-pass`, `bounds`, `adaptive pass`, `filter`.
+pub fn bake(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    inside: &[bool],
+    o: &AdaptiveOptions,
+    p: &BakeParams,
+    timer: &mut StageTimer,
+    progress: &(dyn Fn(u64) + Sync),
+) -> (Bake, AdaptiveStats) {
+    let n = receivers.len();
+    // 1. Pre-pass.
+    let mut sums = vec![Sums::default(); n];
+    let mut own_z = vec![f32::INFINITY; n];
+    sums.par_chunks_mut(CHUNK)
+        .zip(own_z.par_chunks_mut(CHUNK))
+        .enumerate()
+        .for_each(|(c, (sums, zs))| {
+            for (k, (s, z)) in sums.iter_mut().zip(zs.iter_mut()).enumerate() {
+                let r = c * CHUNK + k;
+                let rays = ReceiverRays::new(receivers, r, p.seed);
+                for i in 0..o.pre_rays {
+                    let d = rays.direction(i);
+                    if d.dot(rays.geo_normal) <= 0.0 {
+                        continue;
+                    }
+                    match tracer.closest_hit_normal(rays.origin, d, p.max_distance) {
+                        Some((t, hit_normal)) => *z = z.min(occluder_depth(t, d, hit_normal)),
+                        None => {
+                            s.visible += 1;
+                            sh::accumulate(&mut s.sh, 1.0, d);
+                        }
+                    }
+                }
+                s.rays = o.pre_rays;
+            }
+        });
+    timer.lap("pre-pass");
+
+    // 2. Bounds.
+    let grid = TexelGrid::new(receivers);
+    // The receiver's own z_min is left out of its bound: a width that shrinks
+    // when its own rays hit keeps its dark outcomes and dilutes its bright
+    // ones (floor beside a wall, beyond 0.35: AO bias -0.0049 with it).
+    let z_min = spread_min(receivers, &grid, inside, &own_z, o.max_reach);
+    let sigma_texels: Vec<f32> = (0..n)
+        .map(|r| {
+            let fp = receivers.footprint[r];
+            let s = filter_sigma(z_min[r], o.mu, o.omega_h);
+            let t = if fp > 0.0 { s / fp } else { f32::INFINITY };
+            let t = t.min(o.max_reach as f32 / 2.0);
+            if t < 0.5 || inside[r] { 0.0 } else { t }
+        })
+        .collect();
+    // 3. Ray counts, from the neighbourhood's visibility spread rather than
+    // the receiver's own: a count driven by a receiver's own first rays
+    // correlates its estimate with them (floor beside a wall, beyond 0.35:
+    // AO bias -0.0046 with its own sd).
+    let own_sd: Vec<f32> = (0..n)
+        .map(|r| visibility_sd(sums[r].visible, o.pre_rays))
+        .collect();
+    let sd = neighbourhood_mean(receivers, &grid, inside, &own_sd, o.max_reach);
+    let demand: Vec<f32> = (0..n)
+        .map(|r| {
+            if inside[r] || z_min[r].is_infinite() {
+                return 0.0;
+            }
+            sd[r] / effective_neighbours(sigma_texels[r]).sqrt()
+        })
+        .collect();
+    let target = allocate(&demand, o);
+    timer.lap("bounds");
+
+    // The second batch: the sequence continued to each receiver's count.
+    sums.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, sums)| {
+            for (k, s) in sums.iter_mut().enumerate() {
+                let r = c * CHUNK + k;
+                let rays = ReceiverRays::new(receivers, r, p.seed);
+                for i in s.rays..target[r] {
+                    let d = rays.direction(i);
+                    if tracer.receiver_visible(rays.origin, rays.geo_normal, d, p.max_distance) {
+                        s.visible += 1;
+                        sh::accumulate(&mut s.sh, 1.0, d);
+                    }
+                }
+                s.rays = s.rays.max(target[r]);
+            }
+            progress(sums.len() as u64);
+        });
+    timer.lap("adaptive pass");
+
+    // 4. Filter.
+    let values: Vec<[f32; 10]> = sums
+        .iter()
+        .map(|s| {
+            let inv = 1.0 / s.rays.max(1) as f32;
+            let mut v = [0.0f32; 10];
+            v[0] = s.visible as f32 * inv;
+            for i in 0..SH_COUNT {
+                v[1 + i] = s.sh[i] * inv;
+            }
+            v
+        })
+        .collect();
+    // Equal weight per receiver: weighting by ray count (inverse variance)
+    // biases dark, because the allocation sends more rays to occluded
+    // receivers (Cornell 512, adaptive:64: AO bias -0.0021 with it).
+    let weights = vec![1.0f32; n];
+    let filtered = filter(
+        receivers,
+        &grid,
+        inside,
+        &values,
+        &weights,
+        &sigma_texels,
+        &z_min,
+    );
+    timer.lap("filter");
+
+    let pre_rays = n as u64 * o.pre_rays as u64;
+    let total: u64 = sums.iter().map(|s| s.rays as u64).sum();
+    let bake = Bake {
+        ao: filtered.iter().map(|v| v[0].clamp(0.0, 1.0)).collect(),
+        sh: filtered
+            .iter()
+            .map(|v| std::array::from_fn(|i| v[1 + i]))
+            .collect(),
+        rays: total,
+    };
+    let stats = AdaptiveStats {
+        pre_rays,
+        adaptive_rays: total - pre_rays,
+        rays: sums.iter().map(|s| s.rays).collect(),
+        z_min,
+        sigma_texels,
+    };
+    (bake, stats)
+}
+
+/// Receiver index of each atlas texel.
+struct TexelGrid {
+    width: usize,
+    height: usize,
+    receiver: Vec<u32>,
+}
+
+const NO_RECEIVER: u32 = u32::MAX;
+
+impl TexelGrid {
+    fn new(receivers: &Receivers) -> TexelGrid {
+        let (width, height) = (receivers.width as usize, receivers.height as usize);
+        let mut receiver = vec![NO_RECEIVER; width * height];
+        for (r, &t) in receivers.texel.iter().enumerate() {
+            receiver[t as usize] = r as u32;
+        }
+        TexelGrid {
+            width,
+            height,
+            receiver,
+        }
+    }
+
+    /// Receivers within `reach` texels of receiver `r`'s texel along a row
+    /// (`vertical` false) or a column.
+    #[inline]
+    fn line(
+        &self,
+        receivers: &Receivers,
+        r: usize,
+        reach: usize,
+        vertical: bool,
+    ) -> impl Iterator<Item = usize> + '_ {
+        let t = receivers.texel[r] as usize;
+        let (x, y) = (t % self.width, t / self.width);
+        let (pos, len) = if vertical {
+            (y, self.height)
+        } else {
+            (x, self.width)
+        };
+        let lo = pos.saturating_sub(reach);
+        let hi = (pos + reach).min(len - 1);
+        (lo..=hi).filter_map(move |k| {
+            let texel = if vertical {
+                k * self.width + x
+            } else {
+                y * self.width + k
+            };
+            let j = self.receiver[texel];
+            (j != NO_RECEIVER).then_some(j as usize)
+        })
+    }
+}
+
+/// A separable reduction over the compatible (normals within 25 degrees,
+/// not inside) receivers within `reach` texels, rows then columns: `fold`
+/// over the values, then `finish` with the count. `without_self`: the
+/// receiver's own value never enters its result.
+#[allow(clippy::too_many_arguments)]
+fn separable(
+    receivers: &Receivers,
+    grid: &TexelGrid,
+    inside: &[bool],
+    values: &[f32],
+    reach: u32,
+    without_self: bool,
+    fold: impl Fn(f32, f32) -> f32 + Sync,
+    init: f32,
+    finish: impl Fn(f32, u32) -> f32 + Sync,
+) -> Vec<f32> {
+    let pass = |src: &[f32], vertical: bool| -> Vec<f32> {
+        (0..receivers.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|r| {
+                let n = receivers.normal[r];
+                // Rows leave the receiver out; its column then takes its
+                // row's result, which holds only the others.
+                let skip_self = without_self && !vertical;
+                let (acc, count) = grid
+                    .line(receivers, r, reach as usize, vertical)
+                    .filter(|&j| {
+                        if j == r {
+                            return !skip_self;
+                        }
+                        !inside[j] && receivers.normal[j].dot(n) >= SPREAD_AGREEMENT
+                    })
+                    .fold((init, 0u32), |(a, c), j| (fold(a, src[j]), c + 1));
+                finish(acc, count)
+            })
+            .collect()
+    };
+    let rows = pass(values, false);
+    pass(&rows, true)
+}
+
+/// z_min spread: the minimum of the other receivers' own z_min over the
+/// compatible receivers within `reach` texels (see [`bake`] for why not its
+/// own).
+fn spread_min(
+    receivers: &Receivers,
+    grid: &TexelGrid,
+    inside: &[bool],
+    own: &[f32],
+    reach: u32,
+) -> Vec<f32> {
+    separable(
+        receivers,
+        grid,
+        inside,
+        own,
+        reach,
+        true,
+        f32::min,
+        f32::INFINITY,
+        |m, _| m,
+    )
+}
+
+/// The mean of `values` over the compatible receivers within `reach`
+/// texels (rows, then columns of row means).
+fn neighbourhood_mean(
+    receivers: &Receivers,
+    grid: &TexelGrid,
+    inside: &[bool],
+    values: &[f32],
+    reach: u32,
+) -> Vec<f32> {
+    separable(
+        receivers,
+        grid,
+        inside,
+        values,
+        reach,
+        false,
+        |a, v| a + v,
+        0.0,
+        |s, c| s / c.max(1) as f32,
+    )
+}
+
+/// The separable Gaussian filter of the integrated values (see the module
+/// doc). Returns the filtered values; unfiltered receivers keep their own.
+fn filter(
+    receivers: &Receivers,
+    grid: &TexelGrid,
+    inside: &[bool],
+    values: &[[f32; 10]],
+    weights: &[f32],
+    sigma_texels: &[f32],
+    z_min: &[f32],
+) -> Vec<[f32; 10]> {
+    // Row pass: unnormalized sums and their weight.
+    let pass = |src: &[[f32; 10]], src_w: &[f32], vertical: bool| -> Vec<([f32; 10], f32)> {
+        (0..receivers.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|r| {
+                let sigma = sigma_texels[r];
+                if sigma <= 0.0 {
+                    return (src[r], src_w[r]);
+                }
+                let fp = receivers.footprint[r];
+                let sigma_world = sigma * fp;
+                let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
+                let reach = (2.0 * sigma).ceil() as usize;
+                let (pr, n, geo) = (
+                    receivers.position[r],
+                    receivers.normal[r],
+                    receivers.geo_normal[r],
+                );
+                let mut acc = [0.0f32; 10];
+                let mut wsum = 0.0f32;
+                for j in grid.line(receivers, r, reach, vertical) {
+                    if j != r {
+                        if inside[j] {
+                            continue;
+                        }
+                        let rel = receivers.position[j] - pr;
+                        if rel.length() > z_min[r]
+                            || !lends_rays(
+                                rel,
+                                n,
+                                geo,
+                                receivers.normal[j],
+                                receivers.geo_normal[j],
+                                fp,
+                            )
+                        {
+                            continue;
+                        }
+                    }
+                    let rel = receivers.position[j] - pr;
+                    let tangent = rel - geo * rel.dot(geo);
+                    let w = (-tangent.length_squared() * inv2s2).exp() * src_w[j];
+                    for (a, v) in acc.iter_mut().zip(src[j]) {
+                        *a += w * v;
+                    }
+                    wsum += w;
+                }
+                if wsum > 0.0 {
+                    for a in &mut acc {
+                        *a /= wsum;
+                    }
+                    (acc, wsum)
+                } else {
+                    (src[r], src_w[r])
+                }
+            })
+            .collect()
+    };
+    let rows = pass(values, weights, false);
+    let (row_values, row_weights): (Vec<[f32; 10]>, Vec<f32>) = rows.into_iter().unzip();
+    pass(&row_values, &row_weights, true)
+        .into_iter()
+        .map(|(v, _)| v)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sigma_of_stiff_depths() {
+        // z_min -> 0: no filtering; nothing hit: unbounded; NaN: 0.
+        assert_eq!(filter_sigma(0.0, 0.7, 2.8), 0.0);
+        assert_eq!(filter_sigma(f32::NAN, 0.7, 2.8), 0.0);
+        assert_eq!(filter_sigma(f32::INFINITY, 0.7, 2.8), f32::INFINITY);
+        assert!((filter_sigma(3.92, 0.7, 2.8) - 1.0).abs() < 1e-6);
+        assert!(filter_sigma(1e-30, 0.7, 2.8) > 0.0);
+    }
+
+    #[test]
+    fn effective_neighbours_of_a_gaussian_on_a_lattice() {
+        // Against the direct sum (sum w)^2 / sum w^2 on the integer lattice.
+        for sigma in [1.0f32, 2.0, 4.0] {
+            let (mut s1, mut s2) = (0.0f64, 0.0f64);
+            for y in -40i32..=40 {
+                for x in -40i32..=40 {
+                    let w = (-((x * x + y * y) as f64) / (2.0 * (sigma as f64).powi(2))).exp();
+                    s1 += w;
+                    s2 += w * w;
+                }
+            }
+            let direct = s1 * s1 / s2;
+            let ours = effective_neighbours(sigma) as f64;
+            assert!(
+                (ours - direct).abs() / direct < 0.02,
+                "{sigma}: {ours} vs {direct}"
+            );
+        }
+        assert_eq!(effective_neighbours(0.0), 1.0);
+    }
+
+    #[test]
+    fn ray_counts_are_powers_of_two_with_the_asked_mean() {
+        let o = AdaptiveOptions::default();
+        assert_eq!(power_of_two_rays(0.0, 16, 512), 16);
+        assert_eq!(power_of_two_rays(f32::NAN, 16, 512), 16);
+        assert_eq!(power_of_two_rays(90.0, 16, 512), 64);
+        assert_eq!(power_of_two_rays(100.0, 16, 512), 128);
+        assert_eq!(power_of_two_rays(1e9, 16, 512), 512);
+        // Half the receivers open (no demand), half with demand 1..2.
+        let demand: Vec<f32> = (0..1000)
+            .map(|i| {
+                if i % 2 == 0 {
+                    0.0
+                } else {
+                    1.0 + (i % 7) as f32 / 7.0
+                }
+            })
+            .collect();
+        let c = allocate(&demand, &o);
+        assert!(
+            c.iter()
+                .all(|&v| v.is_power_of_two() && (16..=512).contains(&v))
+        );
+        assert!(
+            c.iter().step_by(2).all(|&v| v == 16),
+            "open receivers stay at the pre-pass"
+        );
+        let mean = c.iter().map(|&v| v as f64).sum::<f64>() / c.len() as f64;
+        assert!((mean - 64.0).abs() / 64.0 < 0.35, "mean {mean}");
+        // More demand, more rays.
+        assert!(c[13] >= c[7] || demand[13] <= demand[7]);
+    }
+
+    #[test]
+    fn occluder_depth_is_the_distance_to_the_hit_plane() {
+        use glam::Vec3;
+        // A wall x = 1 hit along a 60-degree ray at t = 2: the plane is 1 away.
+        let d = Vec3::new(0.5, 0.0, 3f32.sqrt() / 2.0);
+        assert!((occluder_depth(2.0, d, Vec3::X) - 1.0).abs() < 1e-6);
+        assert!((occluder_depth(2.0, d, -Vec3::X) - 1.0).abs() < 1e-6);
+        // Contact and degenerate normals: 0, never NaN or negative.
+        assert_eq!(occluder_depth(0.0, d, Vec3::X), 0.0);
+        assert_eq!(occluder_depth(f32::NAN, d, Vec3::X), 0.0);
+        assert_eq!(occluder_depth(1.0, d, Vec3::ZERO), 0.0);
+    }
+
+    #[test]
+    fn visibility_sd_is_largest_at_half() {
+        assert!(visibility_sd(8, 16) > visibility_sd(15, 16));
+        assert!(visibility_sd(16, 16) > 0.0);
+        assert!(visibility_sd(0, 16) > 0.0);
+    }
+
+    #[test]
+    fn options_are_checked() {
+        assert!(AdaptiveOptions::default().validate().is_ok());
+        for bad in [
+            AdaptiveOptions {
+                pre_rays: 12,
+                ..Default::default()
+            },
+            AdaptiveOptions {
+                max_rays: 8,
+                ..Default::default()
+            },
+            AdaptiveOptions {
+                mean_rays: 1024,
+                ..Default::default()
+            },
+            AdaptiveOptions {
+                mu: f32::NAN,
+                ..Default::default()
+            },
+            AdaptiveOptions {
+                omega_h: 0.0,
+                ..Default::default()
+            },
+            AdaptiveOptions {
+                max_reach: 100,
+                ..Default::default()
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+    }
+}
