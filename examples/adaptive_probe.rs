@@ -9,10 +9,7 @@ use common::*;
 
 fn main() {
     let sc = floor_and_wall();
-    let raw = |mut s: aobake::Settings| {
-        s.fill_inside = false;
-        aobake::bake_scene(&sc, &s).unwrap()
-    };
+    let raw = |s: aobake::Settings| bake_raw(&sc, s);
     let reference = raw(aobake::Settings {
         seed: 11,
         ..settings(128, 2048, Some(1.0))

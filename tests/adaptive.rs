@@ -70,10 +70,7 @@ fn no_leak_across_a_thin_wall() {
 #[test]
 fn floor_beside_a_wall_beats_64_ray_monte_carlo_without_darkening_the_contact() {
     let sc = floor_and_wall();
-    let raw = |mut s: aobake::Settings| {
-        s.fill_inside = false;
-        aobake::bake_scene(&sc, &s).unwrap()
-    };
+    let raw = |s: aobake::Settings| bake_raw(&sc, s);
     let reference = raw(aobake::Settings {
         seed: 11,
         ..settings(128, 2048, Some(1.0))

@@ -216,12 +216,6 @@ fn tilted_shading_normals_match_brute_force() {
     );
 }
 
-/// A bake without the inside fill (raw values are compared).
-fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::Settings) -> aobake::pipeline::Baked {
-    s.fill_inside = false;
-    aobake::bake_scene(sc, &s).unwrap()
-}
-
 #[test]
 fn floor_beside_a_wall_beats_64_ray_monte_carlo() {
     // A floor with a wall standing on it, filtered with a wide gather

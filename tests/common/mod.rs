@@ -219,3 +219,9 @@ pub fn floor_and_wall() -> aobake::gltf::Scene {
     let wall = quad([0.3, 0.0, 0.5], [0.0, 0.0, 0.5], [0.0, 1.0, 0.0], true);
     scene(&glb(&[floor, wall], plain_nodes(2)))
 }
+
+/// A bake without the inside fill (raw values are compared).
+pub fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::Settings) -> aobake::pipeline::Baked {
+    s.fill_inside = false;
+    aobake::bake_scene(sc, &s).unwrap()
+}
