@@ -54,6 +54,18 @@ pub fn open_hemisphere(n: Vec3) -> [f32; SH_COUNT] {
     std::array::from_fn(|i| CLAMPED_COSINE_BAND[BAND[i]] / std::f32::consts::PI * y[i])
 }
 
+/// Coefficients of a receiver with normal n from `rays` cosine-weighted
+/// rays around n, of which the occluded ones summed `occluded_sum` =
+/// sum Y_i(w): the open hemisphere's exact coefficients less the occluded
+/// rays' share (a control variate: an open receiver is exact at any ray
+/// count, and only the occluded rays carry noise).
+#[inline]
+pub fn from_occluded(n: Vec3, occluded_sum: &[f32; SH_COUNT], rays: u32) -> [f32; SH_COUNT] {
+    let open = open_hemisphere(n);
+    let inv = 1.0 / rays.max(1) as f32;
+    std::array::from_fn(|i| open[i] - occluded_sum[i] * inv)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -67,7 +67,7 @@ impl Default for AdaptiveOptions {
             max_rays: 512,
             omega_h: 2.8,
             mu: 0.7,
-            max_reach: 8,
+            max_reach: 4,
         }
     }
 }
@@ -183,6 +183,7 @@ impl AdaptiveStats {
 #[derive(Clone, Copy, Debug, Default)]
 struct Sums {
     visible: u32,
+    /// Sum of Y_i over the occluded rays ([`sh::from_occluded`]).
     sh: [f32; SH_COUNT],
     rays: u32,
 }
@@ -195,21 +196,15 @@ pub fn filter_sigma(z_min: f32, mu: f32, omega_h: f32) -> f32 {
     if s.is_nan() || s <= 0.0 { 0.0 } else { s }
 }
 
-/// A lower bound of the distance to the occluder a ray hit at distance `t`
-/// along unit `d`: the distance to the plane of the hit triangle,
-/// t |d . n_hit| (16 rays seldom hit an occluder's nearest point; the hit
-/// distance alone overestimates z_min and filters a contact shadow wide).
+/// Filter sigma in texels of a receiver with footprint `fp` for `z_min`:
+/// [`filter_sigma`] over the footprint, at most `max_reach / 2`; 0 (not
+/// filtered) below half a texel or inside geometry.
 #[inline]
-pub fn occluder_depth(t: f32, d: glam::Vec3, hit_normal: glam::Vec3) -> f32 {
-    let z = t * d.dot(hit_normal).abs();
-    if z.is_nan() { 0.0 } else { z.max(0.0) }
-}
-
-/// Texels a 2D Gaussian of `sigma_texels` averages with equal effect:
-/// (sum w)^2 / sum w^2 = 4 pi sigma^2 on a unit lattice, at least 1.
-#[inline]
-pub fn effective_neighbours(sigma_texels: f32) -> f32 {
-    (4.0 * std::f32::consts::PI * sigma_texels * sigma_texels).max(1.0)
+pub fn sigma_in_texels(z_min: f32, fp: f32, inside: bool, o: &AdaptiveOptions) -> f32 {
+    let s = filter_sigma(z_min, o.mu, o.omega_h);
+    let t = if fp > 0.0 { s / fp } else { f32::INFINITY };
+    let t = t.min(o.max_reach as f32 / 2.0);
+    if t < 0.5 || inside { 0.0 } else { t }
 }
 
 /// The standard deviation of one ray's visibility from `visible` of
@@ -266,6 +261,10 @@ pub fn allocate(demand: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
 /// Receivers per parallel work item.
 const CHUNK: usize = 64;
 
+/// Least reach, in texels, of the neighbourhood whose visibility spread
+/// sets a receiver's ray count (16 pre-pass rays of one texel are too few).
+const SD_REACH: u32 = 2;
+
 /// Normal agreement of the z_min spread (cos 25 degrees, the leak rule's).
 const SPREAD_AGREEMENT: f32 = 0.906;
 
@@ -295,14 +294,16 @@ pub fn bake(
                 for i in 0..o.pre_rays {
                     let d = rays.direction(i);
                     if d.dot(rays.geo_normal) <= 0.0 {
+                        // Below the surface: occluded, by nothing at a depth.
+                        sh::accumulate(&mut s.sh, 1.0, d);
                         continue;
                     }
-                    match tracer.closest_hit_normal(rays.origin, d, p.max_distance) {
-                        Some((t, hit_normal)) => *z = z.min(occluder_depth(t, d, hit_normal)),
-                        None => {
-                            s.visible += 1;
+                    match tracer.closest_hit(rays.origin, d, p.max_distance) {
+                        Some(t) => {
+                            *z = z.min(t);
                             sh::accumulate(&mut s.sh, 1.0, d);
                         }
+                        None => s.visible += 1,
                     }
                 }
                 s.rays = o.pre_rays;
@@ -312,20 +313,21 @@ pub fn bake(
 
     // 2. Bounds.
     let grid = TexelGrid::new(receivers);
-    // The receiver's own z_min is left out of its bound, so its width does
-    // not depend on its own rays. Measured: no change on the floor beside a
-    // wall (beyond 0.35 from it, AO bias -0.0049 with and without); kept
-    // for that independence, the far-floor bias is still open.
-    let z_min = spread_min(receivers, &grid, inside, &own_z, o.max_reach);
-    let sigma_texels: Vec<f32> = (0..n)
+    // z_min spread over each receiver's own support (2 sigma of its own
+    // z_min, all of max_reach when it saw nothing): a receiver is filtered
+    // no wider than the nearest occluder any texel under its filter saw.
+    let width = |z: f32, r: usize| sigma_in_texels(z, receivers.footprint[r], inside[r], o);
+    let support: Vec<u32> = (0..n)
         .map(|r| {
-            let fp = receivers.footprint[r];
-            let s = filter_sigma(z_min[r], o.mu, o.omega_h);
-            let t = if fp > 0.0 { s / fp } else { f32::INFINITY };
-            let t = t.min(o.max_reach as f32 / 2.0);
-            if t < 0.5 || inside[r] { 0.0 } else { t }
+            if own_z[r].is_infinite() {
+                o.max_reach
+            } else {
+                (2.0 * width(own_z[r], r)).ceil() as u32
+            }
         })
         .collect();
+    let z_min = spread_min(receivers, &grid, inside, &own_z, &support, false);
+    let sigma_texels: Vec<f32> = (0..n).map(|r| width(z_min[r], r)).collect();
     // 3. Ray counts, from the neighbourhood's visibility spread rather than
     // the receiver's own, so a count does not depend on the receiver's own
     // first rays. Measured: no change on the floor beside a wall (beyond
@@ -334,13 +336,22 @@ pub fn bake(
     let own_sd: Vec<f32> = (0..n)
         .map(|r| visibility_sd(sums[r].visible, o.pre_rays))
         .collect();
-    let sd = neighbourhood_mean(receivers, &grid, inside, &own_sd, o.max_reach);
+    let sd_reach: Vec<u32> = support.iter().map(|&s| s.max(SD_REACH)).collect();
+    let sd = neighbourhood_mean(receivers, &grid, inside, &own_sd, &sd_reach);
+    let support_of = FilterSupport {
+        receivers,
+        grid: &grid,
+        inside,
+        sigma_texels: &sigma_texels,
+        z_min: &z_min,
+    };
+    let n_eff = support_of.effective_neighbours();
     let demand: Vec<f32> = (0..n)
         .map(|r| {
             if inside[r] || z_min[r].is_infinite() {
                 return 0.0;
             }
-            sd[r] / effective_neighbours(sigma_texels[r]).sqrt()
+            sd[r] / n_eff[r].sqrt()
         })
         .collect();
     let target = allocate(&demand, o);
@@ -357,6 +368,7 @@ pub fn bake(
                     let d = rays.direction(i);
                     if tracer.receiver_visible(rays.origin, rays.geo_normal, d, p.max_distance) {
                         s.visible += 1;
+                    } else {
                         sh::accumulate(&mut s.sh, 1.0, d);
                     }
                 }
@@ -369,29 +381,19 @@ pub fn bake(
     // 4. Filter.
     let values: Vec<[f32; 10]> = sums
         .iter()
-        .map(|s| {
-            let inv = 1.0 / s.rays.max(1) as f32;
+        .zip(&receivers.normal)
+        .map(|(s, &normal)| {
+            let sh = sh::from_occluded(normal, &s.sh, s.rays);
             let mut v = [0.0f32; 10];
-            v[0] = s.visible as f32 * inv;
-            for i in 0..SH_COUNT {
-                v[1 + i] = s.sh[i] * inv;
-            }
+            v[0] = s.visible as f32 / s.rays.max(1) as f32;
+            v[1..].copy_from_slice(&sh);
             v
         })
         .collect();
     // Equal weight per receiver: weighting by ray count (inverse variance)
     // biases dark, because the allocation sends more rays to occluded
     // receivers (Cornell 512, adaptive:64: AO bias -0.0021 with it).
-    let weights = vec![1.0f32; n];
-    let filtered = filter(
-        receivers,
-        &grid,
-        inside,
-        &values,
-        &weights,
-        &sigma_texels,
-        &z_min,
-    );
+    let filtered = support_of.filter(&values);
     timer.lap("filter");
 
     let pre_rays = n as u64 * o.pre_rays as u64;
@@ -478,7 +480,7 @@ fn separable(
     grid: &TexelGrid,
     inside: &[bool],
     values: &[f32],
-    reach: u32,
+    reach: &[u32],
     without_self: bool,
     fold: impl Fn(f32, f32) -> f32 + Sync,
     init: f32,
@@ -494,7 +496,7 @@ fn separable(
                 // row's result, which holds only the others.
                 let skip_self = without_self && !vertical;
                 let (acc, count) = grid
-                    .line(receivers, r, reach as usize, vertical)
+                    .line(receivers, r, reach[r] as usize, vertical)
                     .filter(|&j| {
                         if j == r {
                             return !skip_self;
@@ -518,7 +520,8 @@ fn spread_min(
     grid: &TexelGrid,
     inside: &[bool],
     own: &[f32],
-    reach: u32,
+    reach: &[u32],
+    without_self: bool,
 ) -> Vec<f32> {
     separable(
         receivers,
@@ -526,7 +529,7 @@ fn spread_min(
         inside,
         own,
         reach,
-        true,
+        without_self,
         f32::min,
         f32::INFINITY,
         |m, _| m,
@@ -540,7 +543,7 @@ fn neighbourhood_mean(
     grid: &TexelGrid,
     inside: &[bool],
     values: &[f32],
-    reach: u32,
+    reach: &[u32],
 ) -> Vec<f32> {
     separable(
         receivers,
@@ -555,81 +558,117 @@ fn neighbourhood_mean(
     )
 }
 
-/// The separable Gaussian filter of the integrated values (see the module
-/// doc). Returns the filtered values; unfiltered receivers keep their own.
-fn filter(
-    receivers: &Receivers,
-    grid: &TexelGrid,
-    inside: &[bool],
-    values: &[[f32; 10]],
-    weights: &[f32],
-    sigma_texels: &[f32],
-    z_min: &[f32],
-) -> Vec<[f32; 10]> {
-    // Row pass: unnormalized sums and their weight.
-    let pass = |src: &[[f32; 10]], src_w: &[f32], vertical: bool| -> Vec<([f32; 10], f32)> {
-        (0..receivers.len())
+/// What the filter reads: the receivers, their bounds and widths.
+#[derive(Clone, Copy)]
+struct FilterSupport<'a> {
+    receivers: &'a Receivers,
+    grid: &'a TexelGrid,
+    inside: &'a [bool],
+    sigma_texels: &'a [f32],
+    z_min: &'a [f32],
+}
+
+impl FilterSupport<'_> {
+    /// Calls `f(j, w)` for each receiver j that lends to receiver `r` along
+    /// its row (`vertical` false) or column, with its Gaussian weight w on
+    /// the offset in r's tangent plane; r itself has w = 1. Neighbours
+    /// inside geometry, beyond z_min or failing the leak rule are left
+    /// out. Nothing for an unfiltered receiver.
+    #[inline]
+    fn for_each_weight(&self, r: usize, vertical: bool, mut f: impl FnMut(usize, f32)) {
+        let sigma = self.sigma_texels[r];
+        if sigma <= 0.0 {
+            return;
+        }
+        let rc = self.receivers;
+        let fp = rc.footprint[r];
+        let sigma_world = sigma * fp;
+        let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
+        let reach = (2.0 * sigma).ceil() as usize;
+        let (pr, n, geo) = (rc.position[r], rc.normal[r], rc.geo_normal[r]);
+        for j in self.grid.line(rc, r, reach, vertical) {
+            let rel = rc.position[j] - pr;
+            if j != r
+                && (self.inside[j]
+                    || rel.length() > self.z_min[r]
+                    || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], fp))
+            {
+                continue;
+            }
+            let tangent = rel - geo * rel.dot(geo);
+            f(j, (-tangent.length_squared() * inv2s2).exp());
+        }
+    }
+
+    /// Effective number of receivers the separable filter averages for
+    /// each receiver: (sum W)^2 / sum W^2 over its final weights W (1 when
+    /// not filtered). With row sums S_j = sum w, Q_j = sum w^2 and column
+    /// weights c_j this is (sum c_j S_j)^2 / sum c_j^2 Q_j.
+    fn effective_neighbours(&self) -> Vec<f32> {
+        let n = self.receivers.len();
+        let rows: Vec<(f32, f32)> = (0..n)
             .into_par_iter()
             .with_min_len(256)
             .map(|r| {
-                let sigma = sigma_texels[r];
-                if sigma <= 0.0 {
-                    return (src[r], src_w[r]);
-                }
-                let fp = receivers.footprint[r];
-                let sigma_world = sigma * fp;
-                let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
-                let reach = (2.0 * sigma).ceil() as usize;
-                let (pr, n, geo) = (
-                    receivers.position[r],
-                    receivers.normal[r],
-                    receivers.geo_normal[r],
-                );
-                let mut acc = [0.0f32; 10];
-                let mut wsum = 0.0f32;
-                for j in grid.line(receivers, r, reach, vertical) {
-                    let rel = receivers.position[j] - pr;
-                    if j != r {
-                        if inside[j] {
-                            continue;
-                        }
-                        if rel.length() > z_min[r]
-                            || !lends_rays(
-                                rel,
-                                n,
-                                geo,
-                                receivers.normal[j],
-                                receivers.geo_normal[j],
-                                fp,
-                            )
-                        {
-                            continue;
-                        }
-                    }
-                    let tangent = rel - geo * rel.dot(geo);
-                    let w = (-tangent.length_squared() * inv2s2).exp() * src_w[j];
-                    for (a, v) in acc.iter_mut().zip(src[j]) {
-                        *a += w * v;
-                    }
-                    wsum += w;
-                }
-                if wsum > 0.0 {
-                    for a in &mut acc {
-                        *a /= wsum;
-                    }
-                    (acc, wsum)
+                let (mut s, mut q) = (0.0f32, 0.0f32);
+                self.for_each_weight(r, false, |_, w| {
+                    s += w;
+                    q += w * w;
+                });
+                if s > 0.0 { (s, q) } else { (1.0, 1.0) }
+            })
+            .collect();
+        (0..n)
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|r| {
+                let (mut num, mut den) = (0.0f32, 0.0f32);
+                self.for_each_weight(r, true, |j, c| {
+                    num += c * rows[j].0;
+                    den += c * c * rows[j].1;
+                });
+                if den > 0.0 {
+                    (num * num / den).max(1.0)
                 } else {
-                    (src[r], src_w[r])
+                    1.0
                 }
             })
             .collect()
-    };
-    let rows = pass(values, weights, false);
-    let (row_values, row_weights): (Vec<[f32; 10]>, Vec<f32>) = rows.into_iter().unzip();
-    pass(&row_values, &row_weights, true)
-        .into_iter()
-        .map(|(v, _)| v)
-        .collect()
+    }
+
+    /// The separable Gaussian filter of the integrated values (see the
+    /// module doc), rows then columns; each row result carries its weight
+    /// sum into the column pass. Unfiltered receivers keep their own.
+    fn filter(&self, values: &[[f32; 10]]) -> Vec<[f32; 10]> {
+        let pass = |src: &[[f32; 10]], src_w: Option<&[f32]>, vertical: bool| {
+            (0..self.receivers.len())
+                .into_par_iter()
+                .with_min_len(256)
+                .map(|r| {
+                    let mut acc = [0.0f32; 10];
+                    let mut wsum = 0.0f32;
+                    self.for_each_weight(r, vertical, |j, w| {
+                        let w = w * src_w.map_or(1.0, |s| s[j]);
+                        for (a, v) in acc.iter_mut().zip(src[j]) {
+                            *a += w * v;
+                        }
+                        wsum += w;
+                    });
+                    if wsum > 0.0 {
+                        (acc.map(|a| a / wsum), wsum)
+                    } else {
+                        (src[r], src_w.map_or(1.0, |s| s[r]))
+                    }
+                })
+                .collect::<Vec<_>>()
+        };
+        let (row_values, row_weights): (Vec<[f32; 10]>, Vec<f32>) =
+            pass(values, None, false).into_iter().unzip();
+        pass(&row_values, Some(&row_weights), true)
+            .into_iter()
+            .map(|(v, _)| v)
+            .collect()
+    }
 }
 
 #[cfg(test)]
@@ -646,26 +685,110 @@ mod tests {
         assert!(filter_sigma(1e-30, 0.7, 2.8) > 0.0);
     }
 
-    #[test]
-    fn effective_neighbours_of_a_gaussian_on_a_lattice() {
-        // Against the direct sum (sum w)^2 / sum w^2 on the integer lattice.
-        for sigma in [1.0f32, 2.0, 4.0] {
-            let (mut s1, mut s2) = (0.0f64, 0.0f64);
-            for y in -40i32..=40 {
-                for x in -40i32..=40 {
-                    let w = (-((x * x + y * y) as f64) / (2.0 * (sigma as f64).powi(2))).exp();
-                    s1 += w;
-                    s2 += w * w;
-                }
-            }
-            let direct = s1 * s1 / s2;
-            let ours = effective_neighbours(sigma) as f64;
-            assert!(
-                (ours - direct).abs() / direct < 0.02,
-                "{sigma}: {ours} vs {direct}"
-            );
+    /// A flat `side` x `side` grid of receivers, one per texel, footprint 1.
+    fn flat_grid(side: u32) -> Receivers {
+        use glam::Vec3;
+        let n = (side * side) as usize;
+        Receivers {
+            width: side,
+            height: side,
+            texel: (0..n as u32).collect(),
+            position: (0..n as u32)
+                .map(|t| Vec3::new((t % side) as f32, (t / side) as f32, 0.0))
+                .collect(),
+            normal: vec![Vec3::Z; n],
+            geo_normal: vec![Vec3::Z; n],
+            footprint: vec![1.0; n],
+            overlapping_texels: 0,
+            first_overlap: None,
         }
-        assert_eq!(effective_neighbours(0.0), 1.0);
+    }
+
+    #[test]
+    fn effective_neighbours_of_the_separable_filter_on_a_plane() {
+        // Against the direct sum (sum w)^2 / sum w^2 of a Gaussian over the
+        // square of reach ceil(2 sigma) around the centre, the filter's
+        // support; at a corner, a quarter of it.
+        let side = 21u32;
+        let rc = flat_grid(side);
+        let grid = TexelGrid::new(&rc);
+        let n = rc.len();
+        let inside = vec![false; n];
+        for sigma in [0.75f32, 1.0, 2.0] {
+            let sigmas = vec![sigma; n];
+            let z_min = vec![f32::INFINITY; n];
+            let support = FilterSupport {
+                receivers: &rc,
+                grid: &grid,
+                inside: &inside,
+                sigma_texels: &sigmas,
+                z_min: &z_min,
+            };
+            let ours = support.effective_neighbours();
+            let reach = (2.0 * sigma).ceil() as i32;
+            let direct = |xs: std::ops::RangeInclusive<i32>| {
+                let (mut s1, mut s2) = (0.0f64, 0.0f64);
+                for y in xs.clone() {
+                    for x in xs.clone() {
+                        let w = (-((x * x + y * y) as f64) / (2.0 * (sigma as f64).powi(2))).exp();
+                        s1 += w;
+                        s2 += w * w;
+                    }
+                }
+                s1 * s1 / s2
+            };
+            let centre = (side * side / 2) as usize;
+            let (c, d) = (ours[centre] as f64, direct(-reach..=reach));
+            assert!((c - d).abs() / d < 1e-3, "{sigma}: {c} vs {d}");
+            let (c, d) = (ours[0] as f64, direct(0..=reach));
+            assert!((c - d).abs() / d < 1e-3, "corner {sigma}: {c} vs {d}");
+            // Unfiltered receivers average only themselves.
+            let none = vec![0.0f32; n];
+            let alone = FilterSupport {
+                sigma_texels: &none,
+                ..support
+            };
+            assert!(alone.effective_neighbours().iter().all(|&v| v == 1.0));
+        }
+    }
+
+    #[test]
+    fn the_filter_keeps_a_constant_and_does_not_cross_z_min() {
+        // A constant is kept exactly; a neighbour beyond z_min is not read.
+        let rc = flat_grid(9);
+        let grid = TexelGrid::new(&rc);
+        let n = rc.len();
+        let inside = vec![false; n];
+        let sigmas = vec![2.0f32; n];
+        let z_min = vec![1.5f32; n];
+        let support = FilterSupport {
+            receivers: &rc,
+            grid: &grid,
+            inside: &inside,
+            sigma_texels: &sigmas,
+            z_min: &z_min,
+        };
+        let out = support.filter(&vec![[0.25f32; 10]; n]);
+        assert!(out.iter().flatten().all(|&v| (v - 0.25).abs() < 1e-6));
+        // One bright texel: only receivers within 1.5 texels (row or column
+        // offsets of 1) see it.
+        let mut values = vec![[0.0f32; 10]; n];
+        values[40] = [1.0; 10];
+        let out = support.filter(&values);
+        for (r, v) in out.iter().enumerate() {
+            let (dx, dy) = ((r % 9) as i32 - 4, (r / 9) as i32 - 4);
+            let reach = dx.abs() <= 1 && dy.abs() <= 1;
+            assert_eq!(v[0] > 0.0, reach, "texel {dx},{dy}");
+        }
+        // Inside receivers lend nothing.
+        let mut inside = vec![false; n];
+        inside[40] = true;
+        let masked = FilterSupport {
+            inside: &inside,
+            ..support
+        };
+        let out = masked.filter(&values);
+        assert!(out.iter().enumerate().all(|(r, v)| r == 40 || v[0] == 0.0));
     }
 
     #[test]
@@ -699,19 +822,6 @@ mod tests {
         assert!((mean - 64.0).abs() / 64.0 < 0.35, "mean {mean}");
         // More demand, more rays.
         assert!(c[13] >= c[7] || demand[13] <= demand[7]);
-    }
-
-    #[test]
-    fn occluder_depth_is_the_distance_to_the_hit_plane() {
-        use glam::Vec3;
-        // A wall x = 1 hit along a 60-degree ray at t = 2: the plane is 1 away.
-        let d = Vec3::new(0.5, 0.0, 3f32.sqrt() / 2.0);
-        assert!((occluder_depth(2.0, d, Vec3::X) - 1.0).abs() < 1e-6);
-        assert!((occluder_depth(2.0, d, -Vec3::X) - 1.0).abs() < 1e-6);
-        // Contact and degenerate normals: 0, never NaN or negative.
-        assert_eq!(occluder_depth(0.0, d, Vec3::X), 0.0);
-        assert_eq!(occluder_depth(f32::NAN, d, Vec3::X), 0.0);
-        assert_eq!(occluder_depth(1.0, d, Vec3::ZERO), 0.0);
     }
 
     #[test]

@@ -3,7 +3,9 @@
 //! In: [`Receivers`], a [`Tracer`], the ray count and [`BakeParams`]. Out:
 //! a [`Bake`], estimated with stratified cosine-weighted directions (so
 //! each ray contributes V and V Y_i(w) with equal weight) from each
-//! receiver's own [`ReceiverRays`].
+//! receiver's own [`ReceiverRays`]; the SH through the open hemisphere's
+//! exact coefficients ([`sh::from_occluded`]), so only occluded rays add
+//! noise.
 
 use super::{Bake, BakeParams, ReceiverRays};
 use crate::atlas::Receivers;
@@ -55,14 +57,15 @@ pub fn integrate_receiver(
 ) -> (f32, [f32; SH_COUNT]) {
     let sequence = ReceiverRays::new(receivers, r, p.seed);
     let mut visible = 0u32;
-    let mut acc = [0.0f32; SH_COUNT];
+    let mut occluded = [0.0f32; SH_COUNT];
     for i in 0..rays {
         let dir = sequence.direction(i);
         if tracer.receiver_visible(sequence.origin, sequence.geo_normal, dir, p.max_distance) {
             visible += 1;
-            sh::accumulate(&mut acc, 1.0, dir);
+        } else {
+            sh::accumulate(&mut occluded, 1.0, dir);
         }
     }
-    let inv = 1.0 / rays.max(1) as f32;
-    (visible as f32 * inv, acc.map(|v| v * inv))
+    let sh = sh::from_occluded(receivers.normal[r], &occluded, rays);
+    (visible as f32 / rays.max(1) as f32, sh)
 }

@@ -1,0 +1,171 @@
+//! Where the adaptive method's error goes, per texel class, beside Monte
+//! Carlo on the same atlas. Classes come from the adaptive run's own
+//! bounds: nothing hit (z_min infinite), contact (not filtered, sigma <
+//! half a texel), filtered narrow (sigma < 2 texels) and filtered wide. Each
+//! row gives the class's share of texels, RMSE, mean bias, share of the
+//! total squared error and mean rays.
+//!
+//!     cargo run --release --example adaptive_classes -- SCENE.glb [RES] [REF_RAYS] [RUNS]
+//!
+//! RUNS: comma-separated `aobake report` budgets (default
+//! `mc:64,mc:256,adaptive:64`); the first adaptive run gives the classes.
+//! The reference is cached under the system temp directory.
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use aobake::pipeline;
+use aobake::stage::StageTimer;
+use std::time::Instant;
+
+fn cached_reference(
+    path: &std::path::Path,
+    res: u32,
+    refs: u32,
+) -> (aobake::pipeline::Prepared, Vec<f32>, Vec<[f32; 9]>) {
+    let scene = aobake::gltf::load(path).expect("load");
+    let s = aobake::Settings {
+        size: aobake::atlas::AtlasSize::Resolution(res),
+        rays: refs,
+        progress: false,
+        fill_inside: false,
+        ..Default::default()
+    };
+    let p = pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
+    let name = path.file_stem().unwrap().to_string_lossy();
+    let cache = std::env::temp_dir().join(format!("aobake-ref-{name}-{res}-{refs}.bin"));
+    let n = p.receivers.len();
+    if let Ok(b) = std::fs::read(&cache)
+        && b.len() == n * 40
+    {
+        {
+            let f: Vec<f32> = b
+                .chunks(4)
+                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+                .collect();
+            let ao = (0..n).map(|i| f[i * 10]).collect();
+            let sh = (0..n)
+                .map(|i| std::array::from_fn(|k| f[i * 10 + 1 + k]))
+                .collect();
+            return (p, ao, sh);
+        }
+    }
+    let r = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+        .expect("reference")
+        .bake;
+    let mut b = Vec::with_capacity(n * 40);
+    for i in 0..n {
+        b.extend_from_slice(&r.ao[i].to_le_bytes());
+        for v in r.sh[i] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(&cache, b).ok();
+    (p, r.ao, r.sh)
+}
+
+fn main() {
+    let a: Vec<String> = std::env::args().collect();
+    let path = std::path::Path::new(&a[1]);
+    let res: u32 = a.get(2).and_then(|v| v.parse().ok()).unwrap_or(1024);
+    let refs: u32 = a.get(3).and_then(|v| v.parse().ok()).unwrap_or(2048);
+    let runs = a
+        .get(4)
+        .cloned()
+        .unwrap_or("mc:64,mc:256,adaptive:64".into());
+    let (p, ref_ao, ref_sh) = cached_reference(path, res, refs);
+    let base = aobake::Settings {
+        size: aobake::atlas::AtlasSize::Resolution(res),
+        progress: false,
+        fill_inside: false,
+        ..Default::default()
+    };
+    let n = p.receivers.len();
+    let mut class: Option<Vec<usize>> = None;
+    const NAMES: [&str; 4] = ["nothing hit", "contact", "narrow (<2 texels)", "wide"];
+    for budget in aobake::report::parse_budgets(&runs).expect("RUNS") {
+        let mut s = budget.settings(&base, 0);
+        if let Ok(v) = std::env::var("AOBAKE_MU") {
+            s.adaptive.mu = v.parse().unwrap();
+        }
+        if let Ok(v) = std::env::var("AOBAKE_REACH") {
+            s.adaptive.max_reach = v.parse().unwrap();
+        }
+        if let Ok(v) = std::env::var("AOBAKE_PRE") {
+            s.adaptive.pre_rays = v.parse().unwrap();
+        }
+        let t = Instant::now();
+        let out = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).unwrap();
+        let secs = t.elapsed().as_secs_f64();
+        let rays: Vec<f64> = match &out.adaptive_stats {
+            Some(st) => st.rays.iter().map(|&r| r as f64).collect(),
+            None => vec![s.rays as f64; n],
+        };
+        if class.is_none()
+            && let Some(st) = &out.adaptive_stats
+        {
+            {
+                class = Some(
+                    (0..n)
+                        .map(|i| {
+                            if st.z_min[i].is_infinite() {
+                                0
+                            } else if st.sigma_texels[i] <= 0.0 {
+                                1
+                            } else if st.sigma_texels[i] < 2.0 {
+                                2
+                            } else {
+                                3
+                            }
+                        })
+                        .collect(),
+                );
+            }
+        }
+        let cls = class.clone().unwrap_or(vec![1; n]);
+        let mut acc = [[0.0f64; 6]; 4]; // count, sum e, sum e2, rays, sh l2 e2, abs>0.05
+        let mut total = 0.0;
+        let mut errs = Vec::new();
+        for i in 0..n {
+            if p.inside[i] {
+                continue;
+            }
+            let e = (out.bake.ao[i] - ref_ao[i]) as f64;
+            let c = &mut acc[cls[i]];
+            c[0] += 1.0;
+            c[1] += e;
+            c[2] += e * e;
+            c[3] += rays[i];
+            for (a, b) in out.bake.sh[i][4..].iter().zip(&ref_sh[i][4..]) {
+                c[4] += ((a - b) as f64).powi(2) / 5.0;
+            }
+            c[5] += (e.abs() > 0.05) as u8 as f64;
+            total += e * e;
+            errs.push(e.abs());
+        }
+        errs.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let m: f64 = acc.iter().map(|c| c[0]).sum();
+        println!(
+            "{} ({secs:.2} s): AO RMSE {:.4}, p99 {:.4}, rays {:.1}",
+            budget.label(),
+            (total / m).sqrt(),
+            errs[(errs.len() as f64 * 0.99) as usize],
+            acc.iter().map(|c| c[3]).sum::<f64>() / m
+        );
+        for (k, c) in acc.iter().enumerate() {
+            if c[0] == 0.0 {
+                continue;
+            }
+            println!(
+                "  {:<20} {:5.1}%  rmse {:.4}  bias {:+.4}  err share {:5.1}%  rays {:6.1}  L2 rmse {:.4}  >0.05: {:.2}%",
+                NAMES[k],
+                100.0 * c[0] / m,
+                (c[2] / c[0]).sqrt(),
+                c[1] / c[0],
+                100.0 * c[2] / total,
+                c[3] / c[0],
+                (c[4] / c[0]).sqrt(),
+                100.0 * c[5] / c[0]
+            );
+        }
+    }
+}
