@@ -179,7 +179,7 @@ fn main() {
                     f.min_weight = w.parse().unwrap();
                 }
                 Settings {
-                    method: Method::Filtered,
+                    method: Method::Sheared,
                     seed: 7,
                     filter: f,
                     ..base.clone()

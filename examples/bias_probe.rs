@@ -36,7 +36,7 @@ fn probe(
         .collect();
     for &(k, r, c) in runs {
         let mut f = s.clone();
-        f.method = Method::Filtered;
+        f.method = Method::Sheared;
         f.filter = ShearedOptions {
             sparse_rays: k,
             gather_radius: r,

@@ -17,7 +17,7 @@ fn main() {
     let (res, k, r, refs) = (arg(2, 512.0), arg(3, 8.0), arg(4, 4.0), arg(5, 256.0));
     let (s, p, reference) = common::reference_bake(path, res as u32, refs as u32);
     let mut f = s.clone();
-    f.method = Method::Filtered;
+    f.method = Method::Sheared;
     f.filter = ShearedOptions {
         sparse_rays: k as u32,
         gather_radius: r as f32,

@@ -35,8 +35,9 @@ fn cli_error(e: anyhow::Error) -> String {
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum MethodArg {
-    /// Sparse rays shared between texels (Egan et al. 2011), brute force where needed.
-    Filtered,
+    /// The sheared filter of Egan et al. 2011: sparse rays shared between texels, brute force where needed (`filtered` is accepted too).
+    #[value(alias = "filtered")]
+    Sheared,
     /// Brute-force Monte Carlo.
     Mc,
     /// Adaptive ray counts and an axis-aligned filter (work in progress).
@@ -71,7 +72,7 @@ impl From<Method> for MethodArg {
     fn from(m: Method) -> Self {
         match m {
             Method::Mc => MethodArg::Mc,
-            Method::Filtered => MethodArg::Filtered,
+            Method::Sheared => MethodArg::Sheared,
             Method::Adaptive => MethodArg::Adaptive,
         }
     }
@@ -132,9 +133,12 @@ struct Cli {
     /// Filtered: cells with less filter weight (about that many samples) are brute-forced.
     #[arg(long, default_value_t = DEFAULTS.filter.min_weight)]
     min_weight: f32,
-    /// Adaptive: mean rays per texel over the atlas (the quality knob).
-    #[arg(long, default_value_t = DEFAULTS.adaptive.mean_rays)]
-    mean_rays: u32,
+    /// Adaptive: the quality knob, the Monte Carlo ray count whose error the bake aims at.
+    #[arg(long, default_value_t = DEFAULTS.adaptive.quality)]
+    quality: u32,
+    /// Adaptive, expert: a fixed mean rays per texel over the atlas instead of --quality.
+    #[arg(long)]
+    mean_rays: Option<u32>,
     /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.
     #[arg(long)]
     debug_dir: Option<PathBuf>,
@@ -198,7 +202,7 @@ struct ReportCli {
     /// Rays per texel of the Monte Carlo reference.
     #[arg(long, default_value_t = REPORT_DEFAULTS.reference_rays)]
     reference_rays: u32,
-    /// Runs: mc:RAYS, filtered:SPARSE_RAYS:GATHER_RADIUS[:CELL_RAYS[:OMEGA_V[:MIN_WEIGHT]]] and adaptive:MEAN_RAYS[:PRE_RAYS:MAX_RAYS], comma-separated.
+    /// Runs: mc:RAYS, sheared:SPARSE_RAYS:GATHER_RADIUS[:CELL_RAYS[:OMEGA_V[:MIN_WEIGHT]]] and adaptive:MEAN_RAYS[:PRE_RAYS:MAX_RAYS], comma-separated.
     #[arg(long, default_value = aobake::report::DEFAULT_BUDGETS)]
     budgets: String,
     /// Random seed of the runs (the reference uses a different one).
@@ -330,7 +334,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         },
         method: match cli.method {
             MethodArg::Mc => Method::Mc,
-            MethodArg::Filtered => Method::Filtered,
+            MethodArg::Sheared => Method::Sheared,
             MethodArg::Adaptive => Method::Adaptive,
         },
         rays: cli.rays,
@@ -342,7 +346,8 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             min_weight: cli.min_weight,
         },
         adaptive: aobake::bake::adaptive::AdaptiveOptions {
-            mean_rays: cli.mean_rays,
+            quality: cli.quality,
+            mean_rays: cli.mean_rays.unwrap_or(0),
             ..DEFAULTS.adaptive
         },
         debug_dir: cli.debug_dir.clone(),

@@ -93,7 +93,12 @@ pub struct FilterReport {
 #[derive(Clone, Debug, Serialize)]
 pub struct AdaptiveReport {
     pub pre_rays_per_texel: u32,
+    /// The quality setting (Monte Carlo rays whose error it aims at).
+    pub quality: u32,
+    /// The fixed mean rays setting (0: from quality).
     pub mean_rays_setting: u32,
+    /// Mean rays per texel cast.
+    pub mean_rays_per_texel: f64,
     pub pre_pass_rays: u64,
     pub adaptive_rays: u64,
     /// (rays per texel, texels) for every count used.
@@ -109,7 +114,9 @@ impl AdaptiveReport {
         let filtered = a.sigma_texels.iter().filter(|&&s| s > 0.0);
         AdaptiveReport {
             pre_rays_per_texel: o.pre_rays,
+            quality: o.quality,
             mean_rays_setting: o.mean_rays,
+            mean_rays_per_texel: a.rays.iter().map(|&r| r as f64).sum::<f64>() / n,
             pre_pass_rays: a.pre_rays,
             adaptive_rays: a.adaptive_rays,
             rays_per_texel_histogram: a.ray_histogram(),
@@ -437,7 +444,7 @@ pub fn bake_prepared(p: &Prepared, s: &Settings, timer: &mut StageTimer) -> Resu
             timer.lap("trace");
             (b, None, None)
         }
-        Method::Filtered => {
+        Method::Sheared => {
             let (b, stats) =
                 sheared::bake(receivers, tracer, &s.filter, &params, timer, &progress)?;
             (b, Some(stats), None)
@@ -504,8 +511,8 @@ pub fn output(
             method: s.method.name().to_string(),
             rays: match s.method {
                 Method::Mc => s.rays,
-                Method::Filtered => s.filter.sparse_rays,
-                Method::Adaptive => s.adaptive.mean_rays,
+                Method::Sheared => s.filter.sparse_rays,
+                Method::Adaptive => s.adaptive.quality,
             },
             seed: s.seed,
             max_distance: p.max_distance_world,

@@ -42,8 +42,9 @@ pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Sparse rays shared between texels by the sheared filter of Egan et
-    /// al. 2011 ([`crate::bake::sheared`]).
-    Filtered,
+    /// al. 2011 ([`crate::bake::sheared`]). Named `filtered` before the
+    /// adaptive method; that name is still accepted.
+    Sheared,
     /// Brute-force Monte Carlo ([`crate::bake::mc`]).
     Mc,
     /// Adaptive ray counts and an axis-aligned filter
@@ -54,7 +55,7 @@ pub enum Method {
 impl Method {
     pub fn name(self) -> &'static str {
         match self {
-            Method::Filtered => "filtered",
+            Method::Sheared => "sheared",
             Method::Mc => "mc",
             Method::Adaptive => "adaptive",
         }
@@ -106,7 +107,7 @@ impl Default for Settings {
             padding: 2,
             packing: Packing::Fast,
             uv: UvSource::Generate,
-            method: Method::Mc,
+            method: Method::Adaptive,
             rays: DEFAULT_RAYS,
             filter: ShearedOptions::default(),
             adaptive: AdaptiveOptions::default(),
@@ -130,7 +131,7 @@ impl Settings {
                 return Err(Error::option("rays", "must be at least 1"));
             }
             Method::Mc => {}
-            Method::Filtered => self.filter.validate()?,
+            Method::Sheared => self.filter.validate()?,
             Method::Adaptive => self.adaptive.validate()?,
         }
         crate::atlas::unwrap::check_size(self.size)?;
@@ -159,7 +160,7 @@ pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
     let per_texel = BYTES_PER_TEXEL
         + match s.method {
             Method::Mc => 0,
-            Method::Filtered => s.filter.bytes_per_texel(),
+            Method::Sheared => s.filter.bytes_per_texel(),
             Method::Adaptive => s.adaptive.bytes_per_texel(),
         };
     texels * per_texel

@@ -227,7 +227,7 @@ fn sliver_and_degenerate_triangles_bake_without_nan() {
     assert!(b.bake.ao.iter().any(|&a| a < 0.6));
     // And the filtered method on the same scene.
     let s = aobake::Settings {
-        method: aobake::Method::Filtered,
+        method: aobake::Method::Sheared,
         ..settings(128, 16, Some(1.0))
     };
     assert_sane(&aobake::bake_scene(&scene(&glb(&[grid(2)], plain_nodes(1))), &s).unwrap());

@@ -8,7 +8,7 @@ use glam::Vec3;
 
 fn filtered(resolution: u32, max_distance: Option<f64>) -> aobake::Settings {
     aobake::Settings {
-        method: Method::Filtered,
+        method: Method::Sheared,
         ..settings(resolution, 0, max_distance)
     }
 }

@@ -1,6 +1,6 @@
 //! Budgets: the runs of a sweep, as `aobake report --budgets` writes them.
 //!
-//! In: a list such as `mc:64,filtered:8:4`. Out: [`Budget`]s, each a
+//! In: a list such as `mc:64,sheared:8:4,adaptive:64`. Out: [`Budget`]s, each a
 //! method and its options, and the [`Settings`] a run bakes with.
 
 use crate::bake::adaptive::{AdaptiveOptions, MAX_ADAPTIVE_RAYS};
@@ -10,7 +10,7 @@ use crate::settings::{DEFAULT_RAYS, Method, Settings};
 
 /// The sweep used when `--budgets` is not given.
 pub const DEFAULT_BUDGETS: &str = "mc:8,mc:16,mc:32,mc:64,mc:128,mc:256,mc:512,\
-filtered:4:4,filtered:8:4,filtered:16:4,filtered:8:8,filtered:16:8";
+sheared:8:4,sheared:16:4,sheared:16:8,adaptive:16,adaptive:32,adaptive:64,adaptive:128";
 
 /// Monte Carlo rays whose error is the equal-error target (the `--rays`
 /// default).
@@ -27,16 +27,17 @@ pub struct Budget {
 }
 
 impl Budget {
-    /// `mc:N`, `adaptive:MEAN[:PRE[:MAX]]` (mean rays per texel, pre-pass
-    /// rays, most rays per texel) or `filtered:K:R[:C[:O[:W]]]` (sparse rays, gather radius,
+    /// `mc:N`, `adaptive:QUALITY[:PRE[:MAX]]` (the Monte Carlo ray count
+    /// whose error it aims at, pre-pass rays, most rays per texel),
+    /// `adaptive-mean:MEAN[:PRE[:MAX]]` (a fixed mean rays per texel) or `sheared:K:R[:C[:O[:W]]]` (`filtered:` too; sparse rays, gather radius,
     /// rays per brute-forced cell, Omega_v, min weight).
     pub fn label(&self) -> String {
         match self.method {
             Method::Mc => format!("mc:{}", self.rays),
-            Method::Filtered => {
+            Method::Sheared => {
                 let f = &self.filter;
                 let d = ShearedOptions::default();
-                let mut s = format!("filtered:{}:{}", f.sparse_rays, f.gather_radius);
+                let mut s = format!("sheared:{}:{}", f.sparse_rays, f.gather_radius);
                 if (f.cell_rays, f.omega_v_max, f.min_weight)
                     != (d.cell_rays, d.omega_v_max, d.min_weight)
                 {
@@ -47,7 +48,11 @@ impl Budget {
             Method::Adaptive => {
                 let a = &self.adaptive;
                 let d = AdaptiveOptions::default();
-                let mut s = format!("adaptive:{}", a.mean_rays);
+                let mut s = if a.mean_rays > 0 {
+                    format!("adaptive-mean:{}", a.mean_rays)
+                } else {
+                    format!("adaptive:{}", a.quality)
+                };
                 if (a.pre_rays, a.max_rays) != (d.pre_rays, d.max_rays) {
                     s += &format!(":{}:{}", a.pre_rays, a.max_rays);
                 }
@@ -59,7 +64,7 @@ impl Budget {
     pub fn is_default(&self) -> bool {
         match self.method {
             Method::Mc => self.rays == TARGET_RAYS,
-            Method::Filtered => self.filter == ShearedOptions::default(),
+            Method::Sheared => self.filter == ShearedOptions::default(),
             Method::Adaptive => self.adaptive == AdaptiveOptions::default(),
         }
     }
@@ -76,10 +81,20 @@ impl Budget {
         }
     }
 
-    /// The filtered method with its default options.
-    pub fn filtered_default() -> Budget {
+    /// The sheared method with its default options.
+    pub fn sheared_default() -> Budget {
         Budget {
-            method: Method::Filtered,
+            method: Method::Sheared,
+            rays: 0,
+            filter: ShearedOptions::default(),
+            adaptive: AdaptiveOptions::default(),
+        }
+    }
+
+    /// The adaptive method with its default options.
+    pub fn adaptive_default() -> Budget {
+        Budget {
+            method: Method::Adaptive,
             rays: 0,
             filter: ShearedOptions::default(),
             adaptive: AdaptiveOptions::default(),
@@ -125,9 +140,9 @@ pub fn parse_budgets(text: &str) -> Result<Vec<Budget>> {
                 }
                 Budget::mc(rays as u32)
             }
-            "filtered" => {
+            "sheared" | "filtered" => {
                 if parts.len() > 6 {
-                    return Err(bad(item, "expected filtered:K:R[:C[:O[:W]]]"));
+                    return Err(bad(item, "expected sheared:K:R[:C[:O[:W]]]"));
                 }
                 let mut f = ShearedOptions::default();
                 if let Some(k) = num(1)? {
@@ -158,15 +173,18 @@ pub fn parse_budgets(text: &str) -> Result<Vec<Budget>> {
                     f.min_weight = w as f32;
                 }
                 Budget {
-                    method: Method::Filtered,
+                    method: Method::Sheared,
                     rays: 0,
                     filter: f,
                     adaptive: AdaptiveOptions::default(),
                 }
             }
-            "adaptive" => {
+            "adaptive" | "adaptive-mean" => {
                 if parts.len() > 4 {
-                    return Err(bad(item, "expected adaptive:MEAN[:PRE[:MAX]]"));
+                    return Err(bad(
+                        item,
+                        "expected adaptive:QUALITY[:PRE[:MAX]] or adaptive-mean:MEAN[:PRE[:MAX]]",
+                    ));
                 }
                 let whole = |i: usize| -> Result<Option<u32>> {
                     match num(i)? {
@@ -182,7 +200,11 @@ pub fn parse_budgets(text: &str) -> Result<Vec<Budget>> {
                 };
                 let mut a = AdaptiveOptions::default();
                 if let Some(m) = whole(1)? {
-                    a.mean_rays = m;
+                    if parts[0] == "adaptive" {
+                        a.quality = m;
+                    } else {
+                        a.mean_rays = m;
+                    }
                 }
                 if let Some(p) = whole(2)? {
                     a.pre_rays = p;
@@ -200,7 +222,7 @@ pub fn parse_budgets(text: &str) -> Result<Vec<Budget>> {
             other => {
                 return Err(bad(
                     item,
-                    &format!("unknown method '{other}' (mc, filtered or adaptive)"),
+                    &format!("unknown method '{other}' (mc, sheared, adaptive or adaptive-mean)"),
                 ));
             }
         };
@@ -227,8 +249,8 @@ mod tests {
         assert_eq!(b[2].filter.omega_v_max, 1.5);
         assert_eq!(b[2].filter.min_weight, 2.0);
         assert_eq!(b[0].label(), "mc:8");
-        assert_eq!(b[1].label(), "filtered:16:6");
-        assert_eq!(b[2].label(), "filtered:8:4:3:1.5:2");
+        assert_eq!(b[1].label(), "sheared:16:6");
+        assert_eq!(b[2].label(), "sheared:8:4:3:1.5:2");
         for bad in [
             "",
             "mc",

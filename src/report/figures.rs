@@ -92,13 +92,29 @@ pub struct EqualError {
     /// AO RMSE of 256-ray Monte Carlo (measured, or interpolated in log-log
     /// between the nearest Monte Carlo runs).
     pub target_ao_rmse: f64,
-    /// End-to-end seconds at which each method's best runs reach it.
+    /// End-to-end seconds at which Monte Carlo's runs reach it.
     pub mc_seconds: Option<f64>,
-    pub filtered_seconds: Option<f64>,
-    /// mc_seconds / filtered_seconds (> 1: filtered is faster).
+    /// The same for each other method swept (sheared, adaptive).
+    pub methods: Vec<MethodAtError>,
+}
+
+/// Where one method's runs reach the equal-error target.
+#[derive(Clone, Debug, Serialize)]
+pub struct MethodAtError {
+    pub method: Method,
+    /// End-to-end seconds at the target (log-log between its runs).
+    pub seconds: Option<f64>,
+    /// mc_seconds / seconds (> 1: faster than Monte Carlo).
     pub speedup: Option<f64>,
-    /// Smallest AO RMSE any filtered run reached.
-    pub best_filtered_ao_rmse: Option<f64>,
+    /// Smallest AO RMSE any of its runs reached.
+    pub best_ao_rmse: Option<f64>,
+}
+
+impl EqualError {
+    /// The entry of `method`, if it was swept.
+    pub fn of(&self, method: Method) -> Option<&MethodAtError> {
+        self.methods.iter().find(|m| m.method == method)
+    }
 }
 
 /// One row of the scale-stability table.

@@ -106,6 +106,7 @@ pub fn error_vs_time(r: &SweepReport) -> Plot {
             .collect(),
         crossing,
     };
+    let at = |m: Method| e.and_then(|e| e.of(m)).and_then(|m| m.seconds);
     let name = std::path::Path::new(&r.input)
         .file_name()
         .map_or(r.input.clone(), |n| n.to_string_lossy().into_owned());
@@ -123,36 +124,30 @@ pub fn error_vs_time(r: &SweepReport) -> Plot {
                 e.and_then(|e| e.mc_seconds),
             ),
             curve(
-                Method::Filtered,
-                "filtered (sparse rays : gather radius)",
-                e.and_then(|e| e.filtered_seconds),
+                Method::Sheared,
+                "sheared (sparse rays : gather radius)",
+                at(Method::Sheared),
             ),
             curve(
                 Method::Adaptive,
                 "adaptive (mean rays per texel)",
-                e.and_then(|e| {
-                    let points: Vec<(f64, f64)> = r
-                        .runs
-                        .iter()
-                        .filter(|x| x.method == Method::Adaptive)
-                        .map(|x| (x.end_to_end_seconds, x.ao.rmse))
-                        .collect();
-                    super::metrics::cost_at_error(&points, e.target_ao_rmse)
-                }),
+                at(Method::Adaptive),
             ),
         ],
         target: e.map(|e| Target {
             error: e.target_ao_rmse,
-            legend: match e.speedup {
-                Some(x) => format!(
-                    "MC-{TARGET_RAYS} error {:.4}: filtered {x:.2}x as fast",
-                    e.target_ao_rmse
-                ),
-                None => format!(
-                    "MC-{TARGET_RAYS} error {:.4}: not reached by filtered",
-                    e.target_ao_rmse
-                ),
-            },
+            legend: format!(
+                "MC-{TARGET_RAYS} error {:.4}: {}",
+                e.target_ao_rmse,
+                e.methods
+                    .iter()
+                    .map(|m| match m.speedup {
+                        Some(x) => format!("{} {x:.2}x as fast", m.method.name()),
+                        None => format!("{} not reached", m.method.name()),
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
         }),
     }
 }

@@ -70,20 +70,26 @@ pub fn markdown(r: &SweepReport) -> String {
     if let Some(e) = &r.equal_error {
         line(String::new());
         let fmt = |v: Option<f64>| v.map_or("not reached".to_string(), |v| format!("{v:.2} s"));
+        let methods: Vec<String> = e
+            .methods
+            .iter()
+            .map(|m| {
+                let name = m.method.name();
+                match m.speedup {
+                    Some(x) => format!("{name} {} ({x:.2}x as fast)", fmt(m.seconds)),
+                    None => format!(
+                        "{name} not reached (its best AO RMSE {})",
+                        m.best_ao_rmse.map_or("-".into(), |v| format!("{v:.4}"))
+                    ),
+                }
+            })
+            .collect();
         line(format!(
-            "**Equal error** at {}-ray Monte Carlo's AO RMSE {:.4}: Monte Carlo {}, filtered {}; {}",
+            "**Equal error** at {}-ray Monte Carlo's AO RMSE {:.4}: Monte Carlo {}; {}.",
             TARGET_RAYS,
             e.target_ao_rmse,
             fmt(e.mc_seconds),
-            fmt(e.filtered_seconds),
-            match e.speedup {
-                Some(x) => format!("filtered is {x:.2}x as fast."),
-                None => format!(
-                    "no filtered run reached it (best filtered AO RMSE {}).",
-                    e.best_filtered_ao_rmse
-                        .map_or("-".into(), |v| format!("{v:.4}"))
-                ),
-            }
+            methods.join("; ")
         ));
     }
     if !r.stability.is_empty() {

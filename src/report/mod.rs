@@ -29,7 +29,9 @@ pub mod metrics;
 pub mod plot;
 
 pub use budget::{Budget, DEFAULT_BUDGETS, TARGET_RAYS, parse_budgets};
-pub use figures::{EqualError, ReportSettings, RunFigures, StabilityRow, Sweep, SweepReport};
+pub use figures::{
+    EqualError, MethodAtError, ReportSettings, RunFigures, StabilityRow, Sweep, SweepReport,
+};
 pub use files::{ERROR_MAP_FULL_SCALE, error_map_rgb, write_report};
 pub use markdown::markdown;
 
@@ -56,9 +58,16 @@ pub fn sweep(
 ) -> Result<Sweep> {
     rs.validate()?;
     let mut budgets = rs.budgets.clone();
-    // Each method's default settings are always measured (their error maps
-    // are drawn and the equal-error target is 256-ray Monte Carlo).
-    for d in [Budget::mc(TARGET_RAYS), Budget::filtered_default()] {
+    // Monte Carlo's and the adaptive method's default settings are always
+    // measured, the sheared method's when it is swept (their error maps are
+    // drawn and the equal-error target is 256-ray Monte Carlo).
+    let sheared = budgets.iter().any(|b| b.method == Method::Sheared);
+    let defaults = [
+        Some(Budget::mc(TARGET_RAYS)),
+        Some(Budget::adaptive_default()),
+        sheared.then(Budget::sheared_default),
+    ];
+    for d in defaults.into_iter().flatten() {
         if rs.include_defaults
             && !budgets
                 .iter()
@@ -204,17 +213,27 @@ pub fn equal_error(runs: &[RunFigures]) -> Option<EqualError> {
         .collect();
     let target = loglog_at(&mc_by_rays, TARGET_RAYS as f64)?;
     let mc_seconds = cost_at_error(&curve(Method::Mc), target);
-    let filtered = curve(Method::Filtered);
-    let filtered_seconds = cost_at_error(&filtered, target);
+    let methods = [Method::Sheared, Method::Adaptive]
+        .into_iter()
+        .filter(|&m| runs.iter().any(|r| r.method == m))
+        .map(|method| {
+            let points = curve(method);
+            let seconds = cost_at_error(&points, target);
+            MethodAtError {
+                method,
+                seconds,
+                speedup: match (mc_seconds, seconds) {
+                    (Some(m), Some(f)) if f > 0.0 => Some(m / f),
+                    _ => None,
+                },
+                best_ao_rmse: points.iter().map(|p| p.1).min_by(f64::total_cmp),
+            }
+        })
+        .collect();
     Some(EqualError {
         target_ao_rmse: target,
         mc_seconds,
-        filtered_seconds,
-        speedup: match (mc_seconds, filtered_seconds) {
-            (Some(m), Some(f)) if f > 0.0 => Some(m / f),
-            _ => None,
-        },
-        best_filtered_ao_rmse: filtered.iter().map(|p| p.1).min_by(f64::total_cmp),
+        methods,
     })
 }
 
@@ -309,17 +328,21 @@ mod tests {
             .iter()
             .map(|&n: &f64| run(Method::Mc, n / 64.0, n, 0.16 / n.sqrt()))
             .collect();
-        runs.push(run(Method::Filtered, 0.5, 10.0, 0.02));
-        runs.push(run(Method::Filtered, 2.0, 40.0, 0.005));
+        runs.push(run(Method::Sheared, 0.5, 10.0, 0.02));
+        runs.push(run(Method::Sheared, 2.0, 40.0, 0.005));
         let e = equal_error(&runs).unwrap();
         assert!((e.target_ao_rmse - 0.01).abs() < 1e-12);
         assert!((e.mc_seconds.unwrap() - 4.0).abs() < 1e-9);
-        assert!((e.filtered_seconds.unwrap() - 1.0).abs() < 1e-9);
-        assert!((e.speedup.unwrap() - 4.0).abs() < 1e-9);
-        // No filtered run good enough: no speed-up, best error reported.
+        let s = e.of(Method::Sheared).unwrap();
+        assert!((s.seconds.unwrap() - 1.0).abs() < 1e-9);
+        assert!((s.speedup.unwrap() - 4.0).abs() < 1e-9);
+        // A method not swept has no entry.
+        assert!(e.of(Method::Adaptive).is_none());
+        // No sheared run good enough: no speed-up, best error reported.
         runs.truncate(4);
         let e = equal_error(&runs).unwrap();
-        assert_eq!(e.speedup, None);
-        assert_eq!(e.best_filtered_ao_rmse, Some(0.02));
+        let s = e.of(Method::Sheared).unwrap();
+        assert_eq!(s.speedup, None);
+        assert_eq!(s.best_ao_rmse, Some(0.02));
     }
 }
