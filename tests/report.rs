@@ -36,8 +36,9 @@ fn an_open_plane_has_zero_error_in_every_run() {
     )
     .unwrap();
     let r = &sweep.report;
-    // The two runs asked for plus the defaults of each method.
-    assert_eq!(r.runs.len(), 4);
+    // The two runs asked for plus the defaults of each method (Monte
+    // Carlo, adaptive, and sheared, which is swept).
+    assert_eq!(r.runs.len(), 5);
     for run in &r.runs {
         assert_eq!(run.ao.rmse, 0.0, "{}", run.label);
         assert_eq!(run.ao.bias, 0.0, "{}", run.label);
@@ -144,7 +145,7 @@ fn cli_writes_every_file_and_refuses_bad_budgets() {
     );
     let json: Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(json["runs"].as_array().unwrap().len(), 5);
+    assert_eq!(json["runs"].as_array().unwrap().len(), 6);
     assert!(json["cores"].as_u64().unwrap() >= 1);
     assert_eq!(json["reference_rays"], 64);
     assert_eq!(json["stability"].as_array().unwrap().len(), 2);

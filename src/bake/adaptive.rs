@@ -747,6 +747,21 @@ mod tests {
         assert_eq!(filter_sigma(f32::INFINITY, 0.7, 2.8), f32::INFINITY);
         assert!((filter_sigma(3.92, 0.7, 2.8) - 1.0).abs() < 1e-6);
         assert!(filter_sigma(1e-30, 0.7, 2.8) > 0.0);
+        // In texels: capped at max_reach / 2 for far or no occluders and a
+        // texel size -> 0; contact, NaN and inside receivers unfiltered.
+        let o = AdaptiveOptions::default();
+        let cap = o.max_reach as f32 / 2.0;
+        assert_eq!(sigma_in_texels(f32::INFINITY, 0.01, false, &o), cap);
+        assert_eq!(sigma_in_texels(1.0, 0.0, false, &o), cap);
+        assert_eq!(sigma_in_texels(1.0, 1e-30, false, &o), cap);
+        assert_eq!(sigma_in_texels(0.0, 0.01, false, &o), 0.0);
+        assert_eq!(sigma_in_texels(f32::NAN, 0.01, false, &o), 0.0);
+        assert_eq!(sigma_in_texels(1.0, f32::NAN, false, &o), 0.0);
+        assert_eq!(sigma_in_texels(1.0, 0.01, true, &o), 0.0);
+        // Half a texel is the contact threshold: z_min = 2 mu Omega_h x 0.5.
+        let edge = 2.0 * o.mu * o.omega_h * 0.5;
+        assert_eq!(sigma_in_texels(edge * 0.99, 1.0, false, &o), 0.0);
+        assert!(sigma_in_texels(edge * 1.01, 1.0, false, &o) > 0.5);
     }
 
     /// A flat `side` x `side` grid of receivers, one per texel, footprint 1.
