@@ -213,9 +213,20 @@ pub fn filter_sigma(z_min: f32, mu: f32, omega_h: f32) -> f32 {
 #[inline]
 pub fn sigma_in_texels(z_min: f32, fp: f32, inside: bool, o: &AdaptiveOptions) -> f32 {
     let s = filter_sigma(z_min, o.mu, o.omega_h);
-    let t = if fp > 0.0 { s / fp } else { f32::INFINITY };
+    // A texel size -> 0 filters as wide as allowed; a NaN one not at all.
+    let t = if fp > 0.0 {
+        s / fp
+    } else if fp == 0.0 {
+        f32::INFINITY
+    } else {
+        0.0
+    };
     let t = t.min(o.max_reach as f32 / 2.0);
-    if t < 0.5 || inside { 0.0 } else { t }
+    if t.is_nan() || t < 0.5 || inside {
+        0.0
+    } else {
+        t
+    }
 }
 
 /// The standard deviation of one ray's visibility from `visible` of
