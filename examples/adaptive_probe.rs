@@ -24,7 +24,7 @@ fn main() {
         let sp = &a.geometry.space;
         let mut bins = [(0.0f64, 0.0f64, 0usize, 0.0f64, 0.0f64); 8];
         for i in 0..a.receivers.len() {
-            let p = sp.center.as_vec3() + a.receivers.position[i] * sp.diagonal as f32;
+            let p = sp.to_world(a.receivers.position[i]);
             if p.z.abs() > 1e-4 || p.y.abs() > 0.4 {
                 continue;
             }

@@ -32,7 +32,7 @@ fn probe(
         .bake;
     let space = &p.geometry.space;
     let sel: Vec<usize> = (0..p.receivers.len())
-        .filter(|&i| keep(space.center.as_vec3() + p.receivers.position[i] * space.diagonal as f32))
+        .filter(|&i| keep(space.to_world(p.receivers.position[i])))
         .collect();
     for &(k, r, c) in runs {
         let mut f = s.clone();
@@ -56,7 +56,7 @@ fn probe(
         if name.starts_with("wall") {
             let mut bins = [(0.0f64, 0.0f64, 0usize); 8];
             for &i in &sel {
-                let q = space.center.as_vec3() + p.receivers.position[i] * space.diagonal as f32;
+                let q = space.to_world(p.receivers.position[i]);
                 let b = (((0.3 - q.x) / 0.08) as usize).min(7);
                 bins[b].0 += (out.bake.ao[i] - reference.ao[i]) as f64;
                 bins[b].1 += st.brute_fraction[i] as f64;
@@ -139,7 +139,7 @@ fn cells_main() {
     s.fill_inside = false;
     let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
     let space = &p.geometry.space;
-    let world = |i: usize| space.center.as_vec3() + p.receivers.position[i] * space.diagonal as f32;
+    let world = |i: usize| space.to_world(p.receivers.position[i]);
     let k_env: u32 = std::env::var("K")
         .ok()
         .and_then(|v| v.parse().ok())

@@ -42,7 +42,7 @@ fn main() {
         println!(
             "texel {:7} at {:?}: filtered {:.3} reference {:.3} | brute {:.2} z_min {:.1} fp neighbours {} sparse AO {:.2} n {:?} geo {:?}",
             p.receivers.texel[i],
-            (space.center.as_vec3() + p.receivers.position[i] * space.diagonal as f32).to_array(),
+            (space.to_world(p.receivers.position[i])).to_array(),
             out.bake.ao[i],
             reference.ao[i],
             st.brute_fraction[i],

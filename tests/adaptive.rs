@@ -49,7 +49,7 @@ fn no_leak_across_a_thin_wall() {
     let s = &a.geometry.space;
     let (mut covered, mut open) = (vec![], vec![]);
     for i in 0..a.receivers.len() {
-        let p = s.center.as_vec3() + a.receivers.position[i] * s.diagonal as f32;
+        let p = s.to_world(a.receivers.position[i]);
         let d = (a.bake.ao[i] - reference.bake.ao[i]) as f64;
         if p.z.abs() < 1e-4 && p.y.abs() < 0.8 {
             if (-0.1..-0.01).contains(&p.x) {
@@ -93,7 +93,7 @@ fn floor_beside_a_wall_beats_64_ray_monte_carlo_without_darkening_the_contact() 
     let s = &a.geometry.space;
     let band: Vec<f64> = (0..a.receivers.len())
         .filter(|&i| {
-            let p = s.center.as_vec3() + a.receivers.position[i] * s.diagonal as f32;
+            let p = s.to_world(a.receivers.position[i]);
             p.z.abs() < 1e-4 && (p.x - 0.3).abs() < 0.05 && p.y.abs() < 0.4
         })
         .map(|i| (a.bake.ao[i] - reference.bake.ao[i]) as f64)
@@ -136,7 +136,7 @@ fn class_bias(
     let s = &a.geometry.space;
     let mut acc = vec![(0.0f64, 0usize); classes];
     for i in 0..a.receivers.len() {
-        let p = s.center.as_vec3() + a.receivers.position[i] * s.diagonal as f32;
+        let p = s.to_world(a.receivers.position[i]);
         if let Some(c) = class(p) {
             acc[c].0 += (a.bake.ao[i] - reference.bake.ao[i]) as f64;
             acc[c].1 += 1;

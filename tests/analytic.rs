@@ -32,7 +32,7 @@ fn picked(b: &aobake::pipeline::Baked, pick: impl Fn(Vec3) -> bool) -> Vec<(Vec3
     let s = &b.geometry.space;
     (0..b.receivers.len())
         .filter_map(|i| {
-            let world = s.center.as_vec3() + b.receivers.position[i] * s.diagonal as f32;
+            let world = s.to_world(b.receivers.position[i]);
             pick(world).then(|| (world, b.bake.ao[i], b.bake.sh[i]))
         })
         .collect()

@@ -72,7 +72,7 @@ fn parallel_plane_matches_closed_form() {
     let mut sum = 0.0f64;
     let mut n = 0;
     for i in 0..b.receivers.len() {
-        let p = s.center.as_vec3() + b.receivers.position[i] * s.diagonal as f32;
+        let p = s.to_world(b.receivers.position[i]);
         if p.z.abs() < 1e-3 && p.x.abs() < 0.2 && p.y.abs() < 0.2 {
             sum += b.bake.ao[i] as f64;
             n += 1;
@@ -94,7 +94,7 @@ fn no_leak_across_a_thin_wall() {
     // Floor texels within 0.1 of the wall on each side, and the wall faces.
     let (mut covered, mut open, mut faces) = (vec![], vec![], vec![]);
     for i in 0..f.receivers.len() {
-        let p = s.center.as_vec3() + f.receivers.position[i] * s.diagonal as f32;
+        let p = s.to_world(f.receivers.position[i]);
         let d = (f.bake.ao[i] - mc.bake.ao[i]) as f64;
         if p.z.abs() < 1e-4 && p.y.abs() < 0.8 {
             if (-0.1..-0.01).contains(&p.x) {
@@ -244,7 +244,7 @@ fn floor_beside_a_wall_beats_64_ray_monte_carlo() {
     let s = &reference.geometry.space;
     let sel: Vec<usize> = (0..reference.receivers.len())
         .filter(|&i| {
-            let p = s.center.as_vec3() + reference.receivers.position[i] * s.diagonal as f32;
+            let p = s.to_world(reference.receivers.position[i]);
             p.z.abs() < 1e-3 && p.x < 0.29 && p.y.abs() < 0.6
         })
         .collect();
@@ -292,7 +292,7 @@ fn a_sheet_just_above_a_floor_lends_it_no_rays() {
     let s = &mc.geometry.space;
     let under: Vec<usize> = (0..mc.receivers.len())
         .filter(|&i| {
-            let p = s.center.as_vec3() + mc.receivers.position[i] * s.diagonal as f32;
+            let p = s.to_world(mc.receivers.position[i]);
             p.z.abs() < 1e-4 && p.x.abs() < 0.2 && p.y.abs() < 0.2
         })
         .collect();
@@ -337,7 +337,7 @@ fn a_wall_top_edge_does_not_darken_the_floor() {
     let s = &reference.geometry.space;
     let sel: Vec<usize> = (0..reference.receivers.len())
         .filter(|&i| {
-            let p = s.center.as_vec3() + reference.receivers.position[i] * s.diagonal as f32;
+            let p = s.to_world(reference.receivers.position[i]);
             p.z.abs() < 1e-3 && (-0.2..0.2).contains(&p.x) && p.y.abs() < 0.6
         })
         .collect();
@@ -373,7 +373,7 @@ fn second_pass_continues_the_sparse_sequence() {
     let rmse = |b: &aobake::pipeline::Baked| {
         let (mut sq, mut n) = (0.0f64, 0usize);
         for i in 0..b.receivers.len() {
-            let p = s.center.as_vec3() + b.receivers.position[i] * s.diagonal as f32;
+            let p = s.to_world(b.receivers.position[i]);
             if p.z.abs() > 1e-4 || p.x.abs() > 0.24 || p.y.abs() > 0.24 {
                 continue;
             }

@@ -88,6 +88,12 @@ impl BakeSpace {
     pub fn to_bake(&self, p: DVec3) -> Vec3 {
         ((p - self.center) / self.diagonal).as_vec3()
     }
+
+    /// The world position of bake-space `p` (the inverse of [`Self::to_bake`],
+    /// in single precision, as receivers are stored).
+    pub fn to_world(&self, p: Vec3) -> Vec3 {
+        self.center.as_vec3() + p * self.diagonal as f32
+    }
 }
 
 /// A baked placement in bake space, ready to unwrap and rasterize.
@@ -592,6 +598,18 @@ fn gpu_instances(doc: &Document, ext: &Value, what: &str) -> Result<Vec<DMat4>> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bake_space_round_trips() {
+        let s = BakeSpace {
+            center: DVec3::new(10.0, -2.0, 3.5),
+            diagonal: 40.0,
+        };
+        let w = DVec3::new(12.0, 0.5, -1.0);
+        let back = s.to_world(s.to_bake(w));
+        assert!((back.as_dvec3() - w).length() < 1e-5, "{back}");
+        assert_eq!(s.to_world(Vec3::ZERO), s.center.as_vec3());
+    }
 
     #[test]
     fn strips_and_fans_expand_with_gltf_winding() {
