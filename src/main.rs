@@ -40,7 +40,7 @@ enum MethodArg {
     Sheared,
     /// Brute-force Monte Carlo.
     Mc,
-    /// Adaptive ray counts and an axis-aligned filter (work in progress).
+    /// Adaptive ray counts and an axis-aligned filter of the integrated values (the default).
     Adaptive,
 }
 

@@ -7,9 +7,9 @@
 //!
 //! - [`mc`]: brute-force Monte Carlo, the reference method;
 //! - [`adaptive`]: adaptive ray counts and an axis-aligned filter of the
-//!   integrated values (work in progress);
+//!   integrated values (the default);
 //! - [`sheared`]: the sheared filter of Egan et al. 2011 (`--method
-//!   filtered`), sparse rays shared between neighbouring receivers;
+//!   sheared`), sparse rays shared between neighbouring receivers;
 //! - [`validity`]: which receivers lie inside or behind geometry (run
 //!   before either method; their texels are filled, not shown).
 //!
