@@ -15,7 +15,7 @@ fn main() {
         ..settings(128, 2048, Some(1.0))
     });
     for (reach, mean) in [(0u32, 16u32), (0, 64), (8, 16), (8, 64)] {
-        let mut s = settings(128, 0, Some(1.0));
+        let mut s = settings(128, aobake::settings::DEFAULT_RAYS, Some(1.0));
         s.method = aobake::Method::Adaptive;
         s.adaptive.max_reach = reach;
         s.adaptive.mean_rays = mean;

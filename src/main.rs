@@ -317,14 +317,6 @@ fn run_report(cli: &ReportCli) -> anyhow::Result<()> {
 }
 
 fn run(cli: &Cli) -> anyhow::Result<()> {
-    // --rays 0 is refused whichever method reads it.
-    if cli.rays == 0 {
-        return Err(aobake::Error::Option {
-            setting: "rays",
-            detail: " must be at least 1".into(),
-        }
-        .into());
-    }
     set_threads(cli.threads)?;
     let settings = Settings {
         size: match cli.texel_density {

@@ -126,10 +126,11 @@ impl Settings {
     /// Checks every setting that can be checked without the scene: the
     /// pipeline calls it before any stage, so a bad option fails at once.
     pub fn validate(&self) -> Result<()> {
+        // Refused whichever method reads it.
+        if self.rays == 0 {
+            return Err(Error::option("rays", "must be at least 1"));
+        }
         match self.method {
-            Method::Mc if self.rays == 0 => {
-                return Err(Error::option("rays", "must be at least 1"));
-            }
             Method::Mc => {}
             Method::Sheared => self.filter.validate()?,
             Method::Adaptive => self.adaptive.validate()?,

@@ -5,10 +5,11 @@
 mod common;
 use aobake::Method;
 use aobake::report::metrics::error_stats;
+use aobake::settings::DEFAULT_RAYS;
 use common::*;
 
 fn adaptive(resolution: u32, mean_rays: u32, max_distance: Option<f64>) -> aobake::Settings {
-    let mut s = settings(resolution, 0, max_distance);
+    let mut s = settings(resolution, DEFAULT_RAYS, max_distance);
     s.method = Method::Adaptive;
     s.adaptive.mean_rays = mean_rays;
     s
@@ -165,7 +166,7 @@ fn contact_shadows_of_a_box_on_the_floor_and_a_1_cm_crevice_keep_their_depth() {
     // An all-open bake of the same atlas (no occluder within reach) gives
     // each class's depth of shadow: reference minus 1.
     let open_floor = bake_raw(&sc, settings(256, 1, Some(1e-9)));
-    let mut s = settings(256, 0, Some(0.3));
+    let mut s = settings(256, DEFAULT_RAYS, Some(0.3));
     s.method = Method::Adaptive;
     let a = bake_raw(&sc, s);
     let class = |p: glam::Vec3| -> Option<usize> {
@@ -220,7 +221,7 @@ fn curtains_keep_their_contact_against_monte_carlo() {
     );
     let mut s = aobake::Settings {
         padding: 0,
-        ..settings(512, 0, None)
+        ..settings(512, DEFAULT_RAYS, None)
     };
     s.method = Method::Adaptive;
     let a = bake_raw(&sc, s);
@@ -242,7 +243,7 @@ fn curtains_keep_their_contact_against_monte_carlo() {
 #[test]
 fn scale_1e_minus_4_and_1e4_give_the_same_bake() {
     let sc = floor_and_wall();
-    let mut s = settings(96, 0, Some(1.0));
+    let mut s = settings(96, DEFAULT_RAYS, Some(1.0));
     s.method = Method::Adaptive;
     let base = bake_raw(&sc, s.clone());
     for scale in [1e-4, 1e4] {

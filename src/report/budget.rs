@@ -105,7 +105,12 @@ impl Budget {
     pub fn settings(&self, base: &Settings, seed: u64) -> Settings {
         Settings {
             method: self.method,
-            rays: self.rays,
+            // Other methods do not read it; the base's passes validation.
+            rays: if self.method == Method::Mc {
+                self.rays
+            } else {
+                base.rays
+            },
             filter: self.filter,
             adaptive: self.adaptive,
             seed,
