@@ -22,32 +22,22 @@ fn cached_reference(
     res: u32,
     refs: u32,
 ) -> (aobake::pipeline::Prepared, Vec<f32>, Vec<[f32; 9]>) {
-    let scene = aobake::gltf::load(path).expect("load");
-    let s = aobake::Settings {
-        size: aobake::atlas::AtlasSize::Resolution(res),
-        rays: refs,
-        progress: false,
-        fill_inside: false,
-        ..Default::default()
-    };
-    let p = pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
+    let (s, p) = common::prepare_for_reference(path, res, refs);
     let name = path.file_stem().unwrap().to_string_lossy();
     let cache = std::env::temp_dir().join(format!("aobake-ref-{name}-{res}-{refs}.bin"));
     let n = p.receivers.len();
     if let Ok(b) = std::fs::read(&cache)
         && b.len() == n * 40
     {
-        {
-            let f: Vec<f32> = b
-                .chunks(4)
-                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-                .collect();
-            let ao = (0..n).map(|i| f[i * 10]).collect();
-            let sh = (0..n)
-                .map(|i| std::array::from_fn(|k| f[i * 10 + 1 + k]))
-                .collect();
-            return (p, ao, sh);
-        }
+        let f: Vec<f32> = b
+            .chunks(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        let ao = (0..n).map(|i| f[i * 10]).collect();
+        let sh = (0..n)
+            .map(|i| std::array::from_fn(|k| f[i * 10 + 1 + k]))
+            .collect();
+        return (p, ao, sh);
     }
     let r = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
         .expect("reference")
@@ -103,23 +93,21 @@ fn main() {
         if class.is_none()
             && let Some(st) = &out.adaptive_stats
         {
-            {
-                class = Some(
-                    (0..n)
-                        .map(|i| {
-                            if st.z_min[i].is_infinite() {
-                                0
-                            } else if st.sigma_texels[i] <= 0.0 {
-                                1
-                            } else if st.sigma_texels[i] < 2.0 {
-                                2
-                            } else {
-                                3
-                            }
-                        })
-                        .collect(),
-                );
-            }
+            class = Some(
+                (0..n)
+                    .map(|i| {
+                        if st.z_min[i].is_infinite() {
+                            0
+                        } else if st.sigma_texels[i] <= 0.0 {
+                            1
+                        } else if st.sigma_texels[i] < 2.0 {
+                            2
+                        } else {
+                            3
+                        }
+                    })
+                    .collect(),
+            );
         }
         let cls = class.clone().unwrap_or(vec![1; n]);
         let mut acc = [[0.0f64; 6]; 4]; // count, sum e, sum e2, rays, sh l2 e2, abs>0.05

@@ -18,6 +18,7 @@ fn main() {
     let scene = aobake::gltf::load(std::path::Path::new(&args[0])).expect("load");
     let s = Settings {
         size: AtlasSize::Resolution(resolution),
+        method: aobake::Method::Mc,
         rays: 16,
         progress: false,
         ..Default::default()

@@ -143,8 +143,28 @@ pub fn split(glb: &[u8]) -> (Value, Vec<u8>) {
 }
 
 /// For the examples: the scene at `path` prepared at `resolution` without
-/// the inside fill (raw values are compared), the Monte Carlo settings of
-/// its `rays`-ray reference, and that reference.
+/// the inside fill (raw values are compared), and the Monte Carlo settings
+/// of its `rays`-ray reference.
+pub fn prepare_for_reference(
+    path: &std::path::Path,
+    resolution: u32,
+    rays: u32,
+) -> (aobake::Settings, aobake::pipeline::Prepared) {
+    use aobake::stage::StageTimer;
+    let scene = aobake::gltf::load(path).expect("load");
+    let s = aobake::Settings {
+        size: aobake::atlas::AtlasSize::Resolution(resolution),
+        method: aobake::Method::Mc,
+        rays,
+        progress: false,
+        fill_inside: false,
+        ..Default::default()
+    };
+    let p = aobake::pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
+    (s, p)
+}
+
+/// [`prepare_for_reference`] and that reference.
 pub fn reference_bake(
     path: &std::path::Path,
     resolution: u32,
@@ -155,15 +175,7 @@ pub fn reference_bake(
     aobake::bake::Bake,
 ) {
     use aobake::stage::StageTimer;
-    let scene = aobake::gltf::load(path).expect("load");
-    let s = aobake::Settings {
-        size: aobake::atlas::AtlasSize::Resolution(resolution),
-        rays,
-        progress: false,
-        fill_inside: false,
-        ..Default::default()
-    };
-    let p = aobake::pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
+    let (s, p) = prepare_for_reference(path, resolution, rays);
     let reference = aobake::pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
         .expect("reference")
         .bake;
