@@ -136,11 +136,16 @@ impl AdaptiveOptions {
         Ok(())
     }
 
-    /// Bytes per atlas texel beyond what every method holds: per-receiver
-    /// sums (AO, SH, rays: 44 B), bounds and widths (16 B), the texel map
-    /// (4 B) and the filter's row pass (44 B).
+    /// Bytes per atlas texel beyond what every method holds (its results,
+    /// AO and SH, which the filter's column pass writes), at the peak, the
+    /// filter's row pass: ray counts, spread z_min and sigma (12 B), the
+    /// texel map (4 B), the filter's input (AO and SH: 40 B) and its row
+    /// pass (44 B). Before it, the pre-pass and bounds hold less: running
+    /// sums (44 B), own z_min, and the bounds' working arrays (sd twice,
+    /// supports, N_eff and its row sums, the allocation's terms and counts:
+    /// about 52 B).
     pub fn bytes_per_texel(&self) -> u64 {
-        108
+        12 + 4 + 40 + 44
     }
 }
 
@@ -388,51 +393,53 @@ pub fn bake(
 
     // 2. Bounds.
     let grid = TexelGrid::new(receivers);
-    // z_min spread over each receiver's own support (2 sigma of its own
-    // z_min, all of max_reach when it saw nothing): a receiver is filtered
-    // no wider than the nearest occluder any texel under its filter saw.
-    let width = |z: f32, r: usize| sigma_in_texels(z, receivers.footprint[r], inside[r], o);
-    let support: Vec<u32> = (0..n)
-        .map(|r| {
-            if own_z[r].is_infinite() {
-                o.max_reach
-            } else {
-                (2.0 * width(own_z[r], r)).ceil() as u32
-            }
-        })
-        .collect();
-    let z_min = spread_min(receivers, &grid, inside, &own_z, &support);
-    let sigma_texels: Vec<f32> = (0..n).map(|r| width(z_min[r], r)).collect();
-    // 3. Ray counts, from the neighbourhood's visibility spread rather than
-    // the receiver's own, so a count does not depend on the receiver's own
-    // first rays. Measured: no change on the floor beside a wall (beyond
-    // 0.35, AO bias -0.0046 with its own sd, -0.0049 with the
-    // neighbourhood's, within that band's noise).
-    let own_sd: Vec<f32> = (0..n)
-        .map(|r| visibility_sd(sums[r].visible, o.pre_rays))
-        .collect();
-    let sd_reach: Vec<u32> = support.iter().map(|&s| s.max(SD_REACH)).collect();
-    let sd = neighbourhood_mean(receivers, &grid, inside, &own_sd, &sd_reach);
-    let support_of = FilterSupport {
-        receivers,
-        grid: &grid,
-        inside,
-        sigma_texels: &sigma_texels,
-        z_min: &z_min,
-    };
-    let n_eff = support_of.effective_neighbours();
-    // Receivers inside geometry or whose neighbourhood saw nothing: the
-    // pre-pass only.
-    let sd: Vec<f32> = (0..n)
-        .map(|r| {
+    // The bounds' working arrays end with this block (the memory estimate
+    // counts its outputs only).
+    let (z_min, sigma_texels, target) = {
+        // z_min spread over each receiver's own support (2 sigma of its own
+        // z_min, all of max_reach when it saw nothing): a receiver is filtered
+        // no wider than the nearest occluder any texel under its filter saw.
+        let width = |z: f32, r: usize| sigma_in_texels(z, receivers.footprint[r], inside[r], o);
+        let support: Vec<u32> = (0..n)
+            .map(|r| {
+                if own_z[r].is_infinite() {
+                    o.max_reach
+                } else {
+                    (2.0 * width(own_z[r], r)).ceil() as u32
+                }
+            })
+            .collect();
+        let z_min = spread_min(receivers, &grid, inside, &own_z, &support);
+        let sigma_texels: Vec<f32> = (0..n).map(|r| width(z_min[r], r)).collect();
+        // 3. Ray counts, from the neighbourhood's visibility spread rather than
+        // the receiver's own, so a count does not depend on the receiver's own
+        // first rays. Measured: no change on the floor beside a wall (beyond
+        // 0.35, AO bias -0.0046 with its own sd, -0.0049 with the
+        // neighbourhood's, within that band's noise).
+        let own_sd: Vec<f32> = (0..n)
+            .map(|r| visibility_sd(sums[r].visible, o.pre_rays))
+            .collect();
+        let sd_reach: Vec<u32> = support.iter().map(|&s| s.max(SD_REACH)).collect();
+        let mut sd = neighbourhood_mean(receivers, &grid, inside, &own_sd, &sd_reach);
+        // Receivers inside geometry or whose neighbourhood saw nothing: the
+        // pre-pass only.
+        for (r, v) in sd.iter_mut().enumerate() {
             if inside[r] || z_min[r].is_infinite() {
-                0.0
-            } else {
-                sd[r]
+                *v = 0.0;
             }
-        })
-        .collect();
-    let target = allocate(&sd, &n_eff, o);
+        }
+        let n_eff = FilterSupport {
+            receivers,
+            grid: &grid,
+            inside,
+            sigma_texels: &sigma_texels,
+            z_min: &z_min,
+        }
+        .effective_neighbours();
+        let target = allocate(&sd, &n_eff, o);
+        (z_min, sigma_texels, target)
+    };
+    drop(own_z);
     timer.lap("bounds");
 
     // The second batch: the sequence continued to each receiver's count.
@@ -454,6 +461,7 @@ pub fn bake(
             }
             progress(sums.len() as u64);
         });
+    drop(target);
     timer.lap("adaptive pass");
 
     // 4. Filter.
@@ -471,23 +479,33 @@ pub fn bake(
     // Equal weight per receiver: weighting by ray count (inverse variance)
     // biases dark, because the allocation sends more rays to occluded
     // receivers (Cornell 512, adaptive:64: AO bias -0.0021 with it).
-    let filtered = support_of.filter(&values);
+    let rays: Vec<u32> = sums.iter().map(|s| s.rays).collect();
+    drop(sums);
+    let (mut ao, sh) = FilterSupport {
+        receivers,
+        grid: &grid,
+        inside,
+        sigma_texels: &sigma_texels,
+        z_min: &z_min,
+    }
+    .filter(values);
+    drop(grid);
+    for a in &mut ao {
+        *a = a.clamp(0.0, 1.0);
+    }
     timer.lap("filter");
 
     let pre_rays = n as u64 * o.pre_rays as u64;
-    let total: u64 = sums.iter().map(|s| s.rays as u64).sum();
+    let total: u64 = rays.iter().map(|&r| r as u64).sum();
     let bake = Bake {
-        ao: filtered.iter().map(|v| v[0].clamp(0.0, 1.0)).collect(),
-        sh: filtered
-            .iter()
-            .map(|v| std::array::from_fn(|i| v[1 + i]))
-            .collect(),
+        ao,
+        sh,
         rays: total,
     };
     let stats = AdaptiveStats {
         pre_rays,
         adaptive_rays: total - pre_rays,
-        rays: sums.iter().map(|s| s.rays).collect(),
+        rays,
         z_min,
         sigma_texels,
     };
@@ -703,38 +721,49 @@ impl FilterSupport<'_> {
             .collect()
     }
 
+    /// One pass of the separable filter over `src` (rows, or columns
+    /// when `vertical`), each value weighted by `src_w` (the row pass's
+    /// weight sums) if given: per receiver its filtered values and their
+    /// weight sum; unfiltered receivers keep their own.
+    fn pass<'s>(
+        &'s self,
+        src: &'s [[f32; 10]],
+        src_w: Option<&'s [f32]>,
+        vertical: bool,
+    ) -> impl IndexedParallelIterator<Item = ([f32; 10], f32)> + 's {
+        (0..self.receivers.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(move |r| {
+                let mut acc = [0.0f32; 10];
+                let mut wsum = 0.0f32;
+                self.for_each_weight(r, vertical, |j, w| {
+                    let w = w * src_w.map_or(1.0, |s| s[j]);
+                    for (a, v) in acc.iter_mut().zip(src[j]) {
+                        *a += w * v;
+                    }
+                    wsum += w;
+                });
+                if wsum > 0.0 {
+                    (acc.map(|a| a / wsum), wsum)
+                } else {
+                    (src[r], src_w.map_or(1.0, |s| s[r]))
+                }
+            })
+    }
+
     /// The separable Gaussian filter of the integrated values (see the
     /// module doc), rows then columns; each row result carries its weight
-    /// sum into the column pass. Unfiltered receivers keep their own.
-    fn filter(&self, values: &[[f32; 10]]) -> Vec<[f32; 10]> {
-        let pass = |src: &[[f32; 10]], src_w: Option<&[f32]>, vertical: bool| {
-            (0..self.receivers.len())
-                .into_par_iter()
-                .with_min_len(256)
-                .map(|r| {
-                    let mut acc = [0.0f32; 10];
-                    let mut wsum = 0.0f32;
-                    self.for_each_weight(r, vertical, |j, w| {
-                        let w = w * src_w.map_or(1.0, |s| s[j]);
-                        for (a, v) in acc.iter_mut().zip(src[j]) {
-                            *a += w * v;
-                        }
-                        wsum += w;
-                    });
-                    if wsum > 0.0 {
-                        (acc.map(|a| a / wsum), wsum)
-                    } else {
-                        (src[r], src_w.map_or(1.0, |s| s[r]))
-                    }
-                })
-                .collect::<Vec<_>>()
-        };
+    /// sum into the column pass. `values` (AO, then the 9 SH) is dropped
+    /// after the row pass; the column pass writes the filtered AO and SH
+    /// arrays themselves.
+    fn filter(&self, values: Vec<[f32; 10]>) -> (Vec<f32>, Vec<[f32; SH_COUNT]>) {
         let (row_values, row_weights): (Vec<[f32; 10]>, Vec<f32>) =
-            pass(values, None, false).into_iter().unzip();
-        pass(&row_values, Some(&row_weights), true)
-            .into_iter()
-            .map(|(v, _)| v)
-            .collect()
+            self.pass(&values, None, false).unzip();
+        drop(values);
+        self.pass(&row_values, Some(&row_weights), true)
+            .map(|(v, _)| (v[0], std::array::from_fn(|i| v[1 + i])))
+            .unzip()
     }
 }
 
@@ -850,17 +879,21 @@ mod tests {
             sigma_texels: &sigmas,
             z_min: &z_min,
         };
-        let out = support.filter(&vec![[0.25f32; 10]; n]);
-        assert!(out.iter().flatten().all(|&v| (v - 0.25).abs() < 1e-6));
+        let (ao, sh) = support.filter(vec![[0.25f32; 10]; n]);
+        assert!(
+            ao.iter()
+                .chain(sh.iter().flatten())
+                .all(|&v| (v - 0.25).abs() < 1e-6)
+        );
         // One bright texel: only receivers within 1.5 texels (row or column
         // offsets of 1) see it.
         let mut values = vec![[0.0f32; 10]; n];
         values[40] = [1.0; 10];
-        let out = support.filter(&values);
+        let (out, _) = support.filter(values.clone());
         for (r, v) in out.iter().enumerate() {
             let (dx, dy) = ((r % 9) as i32 - 4, (r / 9) as i32 - 4);
             let reach = dx.abs() <= 1 && dy.abs() <= 1;
-            assert_eq!(v[0] > 0.0, reach, "texel {dx},{dy}");
+            assert_eq!(*v > 0.0, reach, "texel {dx},{dy}");
         }
         // Inside receivers lend nothing.
         let mut inside = vec![false; n];
@@ -869,8 +902,8 @@ mod tests {
             inside: &inside,
             ..support
         };
-        let out = masked.filter(&values);
-        assert!(out.iter().enumerate().all(|(r, v)| r == 40 || v[0] == 0.0));
+        let (out, _) = masked.filter(values);
+        assert!(out.iter().enumerate().all(|(r, &v)| r == 40 || v == 0.0));
     }
 
     #[test]
