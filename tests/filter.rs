@@ -9,7 +9,7 @@ use glam::Vec3;
 fn filtered(resolution: u32, max_distance: Option<f64>) -> aobake::Settings {
     aobake::Settings {
         method: Method::Sheared,
-        ..settings(resolution, 0, max_distance)
+        ..settings(resolution, aobake::settings::DEFAULT_RAYS, max_distance)
     }
 }
 
