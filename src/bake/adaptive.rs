@@ -147,6 +147,10 @@ impl AdaptiveOptions {
     pub fn bytes_per_texel(&self) -> u64 {
         12 + 4 + 40 + 44
     }
+
+    /// Bytes per receiver the bake keeps after it ends, in
+    /// [`AdaptiveStats`]: rays, z_min and sigma.
+    pub const KEPT_BYTES_PER_TEXEL: u64 = 12;
 }
 
 /// What the adaptive bake did.
