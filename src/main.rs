@@ -139,6 +139,9 @@ struct Cli {
     /// Adaptive, expert: a fixed mean rays per texel over the atlas instead of --quality.
     #[arg(long)]
     mean_rays: Option<u32>,
+    /// Adaptive, expert: hemisphere cells with bounds and a filter of their own (1 or 4).
+    #[arg(long, default_value_t = DEFAULTS.adaptive.cells)]
+    cells: u32,
     /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.
     #[arg(long)]
     debug_dir: Option<PathBuf>,
@@ -348,6 +351,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         adaptive: aobake::bake::adaptive::AdaptiveOptions {
             quality: cli.quality,
             mean_rays: cli.mean_rays.unwrap_or(0),
+            cells: cli.cells,
             ..DEFAULTS.adaptive
         },
         debug_dir: cli.debug_dir.clone(),

@@ -39,9 +39,11 @@ use super::sheared::lends_rays;
 use super::{Bake, BakeParams, ReceiverRays};
 use crate::atlas::Receivers;
 use crate::error::{Error, Result};
+use crate::sample::Frame;
 use crate::sh::{self, SH_COUNT};
 use crate::stage::StageTimer;
 use crate::trace::Tracer;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Options of the adaptive method.
@@ -64,6 +66,10 @@ pub struct AdaptiveOptions {
     pub mu: f32,
     /// Widest filter reach in texels (2 sigma).
     pub max_reach: u32,
+    /// Hemisphere cells with bounds and a filter of their own: 1 (the
+    /// whole hemisphere per receiver) or 4 (the 2x2 quadrants of the
+    /// receiver's sample square, azimuthal quadrants of its frame).
+    pub cells: u32,
 }
 
 impl Default for AdaptiveOptions {
@@ -76,6 +82,7 @@ impl Default for AdaptiveOptions {
             omega_h: 2.8,
             mu: 0.7,
             max_reach: 4,
+            cells: 1,
         }
     }
 }
@@ -127,6 +134,12 @@ impl AdaptiveOptions {
                 return Err(Error::option(name, format!("{v} must be finite and > 0")));
             }
         }
+        if !(self.cells == 1 || self.cells == 4) || self.cells > self.pre_rays {
+            return Err(Error::option(
+                "cells",
+                format!("{} must be 1 or 4 (and at most pre_rays)", self.cells),
+            ));
+        }
         if self.max_reach > MAX_REACH {
             return Err(Error::option(
                 "max_reach",
@@ -138,14 +151,18 @@ impl AdaptiveOptions {
 
     /// Bytes per atlas texel beyond what every method holds (its results,
     /// AO and SH, which the filter's column pass writes), at the peak, the
-    /// filter's row pass: ray counts, spread z_min and sigma (12 B), the
+    /// filter's row pass: ray counts, spread z_min and sigma (12 B per cell), the
     /// texel map (4 B), the filter's input (AO and SH: 40 B) and its row
     /// pass (44 B). Before it, the pre-pass and bounds hold less: running
     /// sums (44 B), own z_min, and the bounds' working arrays (sd twice,
     /// supports, N_eff and its row sums, the allocation's terms and counts:
     /// about 52 B).
+    /// With more than one cell, the cells' running sums (40 B each) and
+    /// bounds (8 B each) are held through the filter.
     pub fn bytes_per_texel(&self) -> u64 {
-        12 + 4 + 40 + 44
+        let cells = self.cells as u64;
+        let sums = if cells > 1 { 40 * cells } else { 0 };
+        4 + 8 * cells + 4 + 40 + 44 + sums
     }
 
     /// Bytes per receiver the bake keeps after it ends, in
@@ -202,14 +219,42 @@ impl AdaptiveStats {
     }
 }
 
-/// One receiver's running sums.
+/// One receiver cell's running sums.
 #[derive(Clone, Copy, Debug, Default)]
-struct Sums {
+struct CellSums {
     visible: u32,
     /// Sum of Y_i over the occluded rays ([`sh::from_occluded`]).
     sh: [f32; SH_COUNT],
-    rays: u32,
 }
+
+/// The cell (of `cells`, 1 or 4) of a point `u` of the sample square: its
+/// 2x2 quadrant, which the concentric map sends to an azimuthal quadrant of
+/// the receiver's frame. Every aligned block of 4 points of the (Owen
+/// scrambled) Sobol sequence has one point in each.
+#[inline]
+pub fn cell_of_point(u: Vec2, cells: usize) -> usize {
+    if cells == 4 {
+        (u.x >= 0.5) as usize + 2 * (u.y >= 0.5) as usize
+    } else {
+        0
+    }
+}
+
+/// Whether receivers with shading normals `a` and `b` have cells that see
+/// the same directions: their frames' tangents within 25 degrees. (The
+/// frame of [`Frame::from_normal`] turns by half a turn where a normal's z
+/// changes sign.)
+#[inline]
+fn frames_agree(tangent_a: Vec3, b: Vec3) -> bool {
+    tangent_a.dot(Frame::from_normal(b).tangent) >= CELL_AGREEMENT
+}
+
+/// Frame agreement of cells that lend to each other: cos 5 degrees.
+/// Measured on Sponza 1024 (cells 4, quality 256, 2048-ray reference): AO
+/// RMSE 0.0082 at 25 degrees (contact texels' L2 SH RMSE 0.0042, against
+/// 0.0023 with one cell: a cell of a turned frame sees other directions),
+/// 0.0075 at 5 degrees, 0.0077 at 2.
+const CELL_AGREEMENT: f32 = 0.996;
 
 /// Filter sigma in world units for an occluder depth bound: z_min / (2 mu
 /// Omega_h); infinite for no occluder, 0 for contact or NaN.
@@ -274,22 +319,33 @@ pub const ALPHA: f64 = 1.4;
 /// (1024 texels, 2048-ray reference), so the margin is 1.23^2 = 1.5.
 pub const MODEL_MARGIN: f64 = 1.5;
 
-/// Ray counts for receivers with visibility spread `sd` whose filter
-/// averages `n_eff` receivers (`sd` 0: pre-pass only). Counts are
+/// [`allocate_variances`] for receivers of one cell with visibility spread
+/// `sd` whose filter averages `n_eff` receivers.
+pub fn allocate(sd: &[f32], n_eff: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
+    let unfiltered: Vec<f32> = sd.iter().map(|s| s * s).collect();
+    let filtered: Vec<f32> = unfiltered
+        .iter()
+        .zip(n_eff)
+        .map(|(v, m)| v / m.max(1.0))
+        .collect();
+    allocate_variances(&filtered, &unfiltered, o)
+}
+
+/// Ray counts for receivers whose one-ray variance is `unfiltered` before
+/// the filter and `filtered` after it (sd^2 / n_eff for one cell; the mean
+/// over the cells otherwise; 0: pre-pass only). Counts are
 /// power_of_two(scale x sd / sqrt(n_eff)) (the allocation that minimizes
 /// the summed variance sd^2 / (rays^ALPHA n_eff) for a given number of
 /// rays), with the scale found by bisection: the smallest whose predicted
 /// mean variance is at most `quality`-ray Monte Carlo's, mean sd^2 /
 /// quality^ALPHA, or with `mean_rays` set, whose mean count reaches it.
-pub fn allocate(sd: &[f32], n_eff: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
+pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
     // Per receiver: demand sd / sqrt(n_eff) and variance share sd^2 / n_eff.
-    let terms: Vec<(f32, f64)> = sd
+    let terms: Vec<(f32, f64)> = filtered
         .iter()
-        .zip(n_eff)
-        .map(|(&s, &m)| {
-            let m = m.max(1.0);
-            if s > 0.0 {
-                (s / m.sqrt(), (s as f64).powi(2) / m as f64)
+        .map(|&v| {
+            if v > 0.0 {
+                (v.sqrt(), v as f64)
             } else {
                 (0.0, 0.0)
             }
@@ -308,7 +364,7 @@ pub fn allocate(sd: &[f32], n_eff: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
         o.mean_rays as f64 * terms.len() as f64
     } else {
         let q = (o.quality as f64).powf(-ALPHA) / MODEL_MARGIN;
-        sd.iter().map(|&s| (s as f64).powi(2) * q).sum()
+        unfiltered.iter().map(|&v| v as f64 * q).sum()
     };
     // Whether the counts at `scale` fall short of the goal: fewer rays than
     // the mean asks, or more predicted variance than the quality allows.
@@ -365,18 +421,23 @@ pub fn bake(
     progress: &(dyn Fn(u64) + Sync),
 ) -> (Bake, AdaptiveStats) {
     let n = receivers.len();
-    // 1. Pre-pass.
-    let mut sums = vec![Sums::default(); n];
-    let mut own_z = vec![f32::INFINITY; n];
-    sums.par_chunks_mut(CHUNK)
-        .zip(own_z.par_chunks_mut(CHUNK))
+    let cells = o.cells as usize;
+    // 1. Pre-pass. Per receiver and cell (receiver-major): running sums and
+    // own z_min.
+    let mut sums = vec![CellSums::default(); n * cells];
+    let mut own_z = vec![f32::INFINITY; n * cells];
+    sums.par_chunks_mut(CHUNK * cells)
+        .zip(own_z.par_chunks_mut(CHUNK * cells))
         .enumerate()
         .for_each(|(c, (sums, zs))| {
-            for (k, (s, z)) in sums.iter_mut().zip(zs.iter_mut()).enumerate() {
+            for k in 0..sums.len() / cells {
                 let r = c * CHUNK + k;
                 let rays = ReceiverRays::new(receivers, r, p.seed);
                 for i in 0..o.pre_rays {
-                    let d = rays.direction(i);
+                    let u = rays.point(i);
+                    let cell = k * cells + cell_of_point(u, cells);
+                    let (s, z) = (&mut sums[cell], &mut zs[cell]);
+                    let d = rays.direction_of(u);
                     if d.dot(rays.geo_normal) <= 0.0 {
                         // Below the surface: occluded, by nothing at a depth.
                         sh::accumulate(&mut s.sh, 1.0, d);
@@ -390,109 +451,198 @@ pub fn bake(
                         None => s.visible += 1,
                     }
                 }
-                s.rays = o.pre_rays;
             }
         });
     timer.lap("pre-pass");
 
-    // 2. Bounds.
+    // 2. Bounds, per cell.
     let grid = TexelGrid::new(receivers);
     // The bounds' working arrays end with this block (the memory estimate
     // counts its outputs only).
     let (z_min, sigma_texels, target) = {
-        // z_min spread over each receiver's own support (2 sigma of its own
-        // z_min, all of max_reach when it saw nothing): a receiver is filtered
-        // no wider than the nearest occluder any texel under its filter saw.
         let width = |z: f32, r: usize| sigma_in_texels(z, receivers.footprint[r], inside[r], o);
-        let support: Vec<u32> = (0..n)
-            .map(|r| {
-                if own_z[r].is_infinite() {
-                    o.max_reach
-                } else {
-                    (2.0 * width(own_z[r], r)).ceil() as u32
-                }
-            })
-            .collect();
-        let z_min = spread_min(receivers, &grid, inside, &own_z, &support);
-        let sigma_texels: Vec<f32> = (0..n).map(|r| width(z_min[r], r)).collect();
-        // 3. Ray counts, from the neighbourhood's visibility spread rather than
-        // the receiver's own, so a count does not depend on the receiver's own
-        // first rays. Measured: no change on the floor beside a wall (beyond
-        // 0.35, AO bias -0.0046 with its own sd, -0.0049 with the
-        // neighbourhood's, within that band's noise).
-        let own_sd: Vec<f32> = (0..n)
-            .map(|r| visibility_sd(sums[r].visible, o.pre_rays))
-            .collect();
-        let sd_reach: Vec<u32> = support.iter().map(|&s| s.max(SD_REACH)).collect();
-        let mut sd = neighbourhood_mean(receivers, &grid, inside, &own_sd, &sd_reach);
-        // Receivers inside geometry or whose neighbourhood saw nothing: the
-        // pre-pass only.
-        for (r, v) in sd.iter_mut().enumerate() {
-            if inside[r] || z_min[r].is_infinite() {
-                *v = 0.0;
+        let mut z_min: Vec<Vec<f32>> = Vec::with_capacity(cells);
+        let mut sigma_texels: Vec<Vec<f32>> = Vec::with_capacity(cells);
+        // Per receiver, sum over its cells of sd^2 / n_eff and of sd^2: how
+        // much of its variance the filter leaves.
+        let mut left = vec![(0.0f32, 0.0f32); n];
+        let cell_rays = o.pre_rays / o.cells;
+        for cell in 0..cells {
+            let own: Vec<f32> = (0..n).map(|r| own_z[r * cells + cell]).collect();
+            // z_min spread over each receiver's own support (2 sigma of its
+            // own z_min, all of max_reach when it saw nothing): a receiver is
+            // filtered no wider than the nearest occluder any texel under its
+            // filter saw.
+            let support: Vec<u32> = (0..n)
+                .map(|r| {
+                    if own[r].is_infinite() {
+                        o.max_reach
+                    } else {
+                        (2.0 * width(own[r], r)).ceil() as u32
+                    }
+                })
+                .collect();
+            let z = spread_min(receivers, &grid, inside, cells, &own, &support);
+            drop(own);
+            let sigma: Vec<f32> = (0..n).map(|r| width(z[r], r)).collect();
+            // 3. Ray counts, from the neighbourhood's visibility spread rather
+            // than the receiver's own, so a count does not depend on the
+            // receiver's own first rays. Measured: no change on the floor
+            // beside a wall (beyond 0.35, AO bias -0.0046 with its own sd,
+            // -0.0049 with the neighbourhood's, within that band's noise).
+            let own_sd: Vec<f32> = (0..n)
+                .map(|r| visibility_sd(sums[r * cells + cell].visible, cell_rays))
+                .collect();
+            let sd_reach: Vec<u32> = support.iter().map(|&s| s.max(SD_REACH)).collect();
+            let sd = neighbourhood_mean(receivers, &grid, inside, cells, &own_sd, &sd_reach);
+            let n_eff = FilterSupport {
+                receivers,
+                grid: &grid,
+                inside,
+                cells,
+                sigma_texels: &sigma,
+                z_min: &z,
             }
+            .effective_neighbours();
+            // Cells whose neighbourhood saw nothing add no variance.
+            for r in 0..n {
+                if !z[r].is_infinite() {
+                    let v = sd[r] * sd[r];
+                    left[r].0 += v / n_eff[r].max(1.0);
+                    left[r].1 += v;
+                }
+            }
+            z_min.push(z);
+            sigma_texels.push(sigma);
         }
-        let n_eff = FilterSupport {
-            receivers,
-            grid: &grid,
-            inside,
-            sigma_texels: &sigma_texels,
-            z_min: &z_min,
-        }
-        .effective_neighbours();
-        let target = allocate(&sd, &n_eff, o);
+        // The receiver's variance from its whole pre-pass (its cells' 4-ray
+        // spreads are too coarse to add up: smoothed, a fully occluded cell
+        // looks as noisy as a half-occluded one), times the share the cells'
+        // filters leave. Receivers inside geometry or whose neighbourhood
+        // saw nothing: the pre-pass only.
+        let (unfiltered, filtered): (Vec<f32>, Vec<f32>) = if cells == 1 {
+            left.iter()
+                .enumerate()
+                .map(|(r, &(f, u))| if inside[r] { (0.0, 0.0) } else { (u, f) })
+                .unzip()
+        } else {
+            let own_sd: Vec<f32> = (0..n)
+                .map(|r| {
+                    let visible = (0..cells).map(|c| sums[r * cells + c].visible).sum();
+                    visibility_sd(visible, o.pre_rays)
+                })
+                .collect();
+            let reach: Vec<u32> = (0..n)
+                .map(|r| {
+                    let z = (0..cells)
+                        .map(|c| own_z[r * cells + c])
+                        .fold(f32::INFINITY, f32::min);
+                    if z.is_infinite() {
+                        o.max_reach
+                    } else {
+                        ((2.0 * width(z, r)).ceil() as u32).max(SD_REACH)
+                    }
+                })
+                .collect();
+            let sd = neighbourhood_mean(receivers, &grid, inside, 1, &own_sd, &reach);
+            (0..n)
+                .map(|r| {
+                    let (f, u) = left[r];
+                    if inside[r] || u <= 0.0 {
+                        (0.0, 0.0)
+                    } else {
+                        let v = sd[r] * sd[r];
+                        (v, v * f / u)
+                    }
+                })
+                .unzip()
+        };
+        drop(left);
+        let target = allocate_variances(&filtered, &unfiltered, o);
         (z_min, sigma_texels, target)
     };
     drop(own_z);
     timer.lap("bounds");
 
     // The second batch: the sequence continued to each receiver's count.
-    sums.par_chunks_mut(CHUNK)
+    let rays: Vec<u32> = target.iter().map(|&t| t.max(o.pre_rays)).collect();
+    drop(target);
+    sums.par_chunks_mut(CHUNK * cells)
         .enumerate()
         .for_each(|(c, sums)| {
-            for (k, s) in sums.iter_mut().enumerate() {
+            for k in 0..sums.len() / cells {
                 let r = c * CHUNK + k;
-                let rays = ReceiverRays::new(receivers, r, p.seed);
-                for i in s.rays..target[r] {
-                    let d = rays.direction(i);
-                    if tracer.receiver_visible(rays.origin, rays.geo_normal, d, p.max_distance) {
+                let ray = ReceiverRays::new(receivers, r, p.seed);
+                for i in o.pre_rays..rays[r] {
+                    let u = ray.point(i);
+                    let s = &mut sums[k * cells + cell_of_point(u, cells)];
+                    let d = ray.direction_of(u);
+                    if tracer.receiver_visible(ray.origin, ray.geo_normal, d, p.max_distance) {
                         s.visible += 1;
                     } else {
                         sh::accumulate(&mut s.sh, 1.0, d);
                     }
                 }
-                s.rays = s.rays.max(target[r]);
             }
-            progress(sums.len() as u64);
+            progress((sums.len() / cells) as u64);
         });
-    drop(target);
     timer.lap("adaptive pass");
 
-    // 4. Filter.
-    let values: Vec<[f32; 10]> = sums
-        .iter()
-        .zip(&receivers.normal)
-        .map(|(s, &normal)| {
-            let sh = sh::from_occluded(normal, &s.sh, s.rays);
-            let mut v = [0.0f32; 10];
-            v[0] = s.visible as f32 / s.rays.max(1) as f32;
-            v[1..].copy_from_slice(&sh);
-            v
-        })
-        .collect();
-    // Equal weight per receiver: weighting by ray count (inverse variance)
-    // biases dark, because the allocation sends more rays to occluded
-    // receivers (Cornell 512, adaptive:64: AO bias -0.0021 with it).
-    let rays: Vec<u32> = sums.iter().map(|s| s.rays).collect();
-    drop(sums);
-    let (mut ao, sh) = FilterSupport {
-        receivers,
-        grid: &grid,
-        inside,
-        sigma_texels: &sigma_texels,
-        z_min: &z_min,
+    // 4. Filter, each cell on its own bounds; the AO and SH are the sums
+    // of the cells' filtered shares. Equal weight per receiver: weighting
+    // by ray count (inverse variance) biases dark, because the allocation
+    // sends more rays to occluded receivers (Cornell 512, adaptive:64: AO
+    // bias -0.0021 with it).
+    let mut ao = Vec::new();
+    let mut sh: Vec<[f32; SH_COUNT]> = Vec::new();
+    for cell in 0..cells {
+        // The cell's share of the AO and of the SH (the open hemisphere's
+        // exact projection goes with the first cell).
+        let values: Vec<[f32; 10]> = (0..n)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|r| {
+                let s = &sums[r * cells + cell];
+                let inv = 1.0 / rays[r] as f32;
+                let mut v = [0.0f32; 10];
+                v[0] = s.visible as f32 * inv;
+                if cell == 0 {
+                    v[1..].copy_from_slice(&sh::from_occluded(receivers.normal[r], &s.sh, rays[r]));
+                } else {
+                    for (v, y) in v[1..].iter_mut().zip(s.sh) {
+                        *v = -y * inv;
+                    }
+                }
+                v
+            })
+            .collect();
+        if cell + 1 == cells {
+            sums = Vec::new();
+        }
+        let (cell_ao, cell_sh) = FilterSupport {
+            receivers,
+            grid: &grid,
+            inside,
+            cells,
+            sigma_texels: &sigma_texels[cell],
+            z_min: &z_min[cell],
+        }
+        .filter(values);
+        if cell == 0 {
+            (ao, sh) = (cell_ao, cell_sh);
+        } else {
+            ao.par_iter_mut()
+                .zip(&mut sh)
+                .zip(cell_ao.par_iter().zip(&cell_sh))
+                .for_each(|((a, s), (ca, cs))| {
+                    *a += ca;
+                    for (s, c) in s.iter_mut().zip(cs) {
+                        *s += c;
+                    }
+                });
+        }
     }
-    .filter(values);
+    drop(sums);
     drop(grid);
     for a in &mut ao {
         *a = a.clamp(0.0, 1.0);
@@ -505,6 +655,21 @@ pub fn bake(
         ao,
         sh,
         rays: total,
+    };
+    // Per receiver, its nearest cell's bounds.
+    let (z_min, sigma_texels) = if cells == 1 {
+        let mut z = z_min;
+        let mut s = sigma_texels;
+        (z.remove(0), s.remove(0))
+    } else {
+        (0..n)
+            .map(|r| {
+                let c = (0..cells)
+                    .min_by(|&a, &b| z_min[a][r].total_cmp(&z_min[b][r]))
+                    .unwrap_or(0);
+                (z_min[c][r], sigma_texels[c][r])
+            })
+            .unzip()
     };
     let stats = AdaptiveStats {
         pre_rays,
@@ -571,14 +736,15 @@ impl TexelGrid {
 }
 
 /// A separable reduction over the compatible (normals within 25 degrees,
-/// not inside) receivers within `reach` texels, rows then columns: `fold`
-/// over the values (the receiver's own included), then `finish` with the
-/// count.
+/// not inside; with more than one cell, frames within 25 degrees)
+/// receivers within `reach` texels, rows then columns: `fold` over the
+/// values (the receiver's own included), then `finish` with the count.
 #[allow(clippy::too_many_arguments)]
 fn separable(
     receivers: &Receivers,
     grid: &TexelGrid,
     inside: &[bool],
+    cells: usize,
     values: &[f32],
     reach: &[u32],
     fold: impl Fn(f32, f32) -> f32 + Sync,
@@ -591,10 +757,15 @@ fn separable(
             .with_min_len(256)
             .map(|r| {
                 let n = receivers.normal[r];
+                let tangent = Frame::from_normal(n).tangent;
                 let (acc, count) = grid
                     .line(receivers, r, reach[r] as usize, vertical)
                     .filter(|&j| {
-                        j == r || (!inside[j] && receivers.normal[j].dot(n) >= SPREAD_AGREEMENT)
+                        let nj = receivers.normal[j];
+                        j == r
+                            || (!inside[j]
+                                && nj.dot(n) >= SPREAD_AGREEMENT
+                                && (cells == 1 || frames_agree(tangent, nj)))
                     })
                     .fold((init, 0u32), |(a, c), j| (fold(a, src[j]), c + 1));
                 finish(acc, count)
@@ -611,6 +782,7 @@ fn spread_min(
     receivers: &Receivers,
     grid: &TexelGrid,
     inside: &[bool],
+    cells: usize,
     own: &[f32],
     reach: &[u32],
 ) -> Vec<f32> {
@@ -618,6 +790,7 @@ fn spread_min(
         receivers,
         grid,
         inside,
+        cells,
         own,
         reach,
         f32::min,
@@ -632,6 +805,7 @@ fn neighbourhood_mean(
     receivers: &Receivers,
     grid: &TexelGrid,
     inside: &[bool],
+    cells: usize,
     values: &[f32],
     reach: &[u32],
 ) -> Vec<f32> {
@@ -639,6 +813,7 @@ fn neighbourhood_mean(
         receivers,
         grid,
         inside,
+        cells,
         values,
         reach,
         |a, v| a + v,
@@ -653,6 +828,9 @@ struct FilterSupport<'a> {
     receivers: &'a Receivers,
     grid: &'a TexelGrid,
     inside: &'a [bool],
+    /// Cells per receiver: with more than one, only receivers whose frames
+    /// agree lend.
+    cells: usize,
     sigma_texels: &'a [f32],
     z_min: &'a [f32],
 }
@@ -675,12 +853,14 @@ impl FilterSupport<'_> {
         let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
         let reach = (2.0 * sigma).ceil() as usize;
         let (pr, n, geo) = (rc.position[r], rc.normal[r], rc.geo_normal[r]);
+        let tangent = Frame::from_normal(n).tangent;
         for j in self.grid.line(rc, r, reach, vertical) {
             let rel = rc.position[j] - pr;
             if j != r
                 && (self.inside[j]
                     || rel.length() > self.z_min[r]
-                    || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], fp))
+                    || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], fp)
+                    || (self.cells > 1 && !frames_agree(tangent, rc.normal[j])))
             {
                 continue;
             }
@@ -776,6 +956,31 @@ mod tests {
     use super::*;
 
     #[test]
+    fn every_block_of_four_rays_has_one_in_each_cell() {
+        for seed in [0u64, 1, 0xdead_beef_1234_5678] {
+            for block in 0..64u32 {
+                let mut seen = [0; 4];
+                for i in 4 * block..4 * block + 4 {
+                    seen[cell_of_point(crate::sample::sobol_2d(i, seed), 4)] += 1;
+                }
+                assert_eq!(seen, [1; 4], "seed {seed} block {block}");
+            }
+        }
+        assert_eq!(cell_of_point(Vec2::new(0.9, 0.9), 1), 0);
+        // The concentric map sends the square's quadrants to the frame's.
+        for (u, c) in [
+            ((0.7, 0.7), 3),
+            ((0.3, 0.7), 2),
+            ((0.3, 0.3), 0),
+            ((0.7, 0.3), 1),
+        ] {
+            let d = crate::sample::cosine_hemisphere(Vec2::new(u.0, u.1));
+            assert_eq!(cell_of_point(Vec2::new(u.0, u.1), 4), c);
+            assert_eq!((d.x > 0.0) as usize + 2 * (d.y > 0.0) as usize, c);
+        }
+    }
+
+    #[test]
     fn sigma_of_stiff_depths() {
         // z_min -> 0: no filtering; nothing hit: unbounded; NaN: 0.
         assert_eq!(filter_sigma(0.0, 0.7, 2.8), 0.0);
@@ -836,6 +1041,7 @@ mod tests {
                 receivers: &rc,
                 grid: &grid,
                 inside: &inside,
+                cells: 1,
                 sigma_texels: &sigmas,
                 z_min: &z_min,
             };
@@ -880,6 +1086,7 @@ mod tests {
             receivers: &rc,
             grid: &grid,
             inside: &inside,
+            cells: 1,
             sigma_texels: &sigmas,
             z_min: &z_min,
         };
