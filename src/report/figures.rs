@@ -141,6 +141,9 @@ pub struct SweepReport {
     pub atlas_width: u32,
     pub atlas_height: u32,
     pub texels: usize,
+    /// Texels inside or behind geometry: the output fills them from their
+    /// nearest valid texel, so no run's error counts them.
+    pub texels_inside: usize,
     pub charts: u32,
     pub occluder_triangles: usize,
     pub max_distance_world: f64,

@@ -27,8 +27,13 @@ pub fn markdown(r: &SweepReport) -> String {
         r.max_distance_world
     ));
     line(format!(
-        "Reference: {}-ray Monte Carlo (seed {}), {:.2} s. Shared stages (load, unwrap, rasterize, BVH, dilate, encode, write): {:.2} s, counted in every end-to-end time. Errors are per texel against the reference; AO bias > 0 means too bright.\n",
-        r.reference_rays, r.reference_seed, r.reference_seconds, r.shared_seconds
+        "Reference: {}-ray Monte Carlo (seed {}), {:.2} s. Shared stages (load, unwrap, rasterize, BVH, dilate, encode, write): {:.2} s, counted in every end-to-end time. Errors are per texel against the reference, over the {} texels not inside geometry ({} inside are filled from their neighbours in the output and left out); AO bias > 0 means too bright.\n",
+        r.reference_rays,
+        r.reference_seed,
+        r.reference_seconds,
+        r.shared_seconds,
+        r.texels - r.texels_inside,
+        r.texels_inside
     ));
     line("| run | end-to-end s | passes s | rays/texel | AO RMSE | AO bias | AO p99 | AO max | SH RMSE L0 | L1 | L2 | cells brute-forced (contact, no hit) |".into());
     line("|---|---|---|---|---|---|---|---|---|---|---|---|".into());

@@ -40,6 +40,7 @@ use crate::error::{Error, Result};
 use crate::gltf::Scene;
 use crate::pipeline::{self, Prepared};
 use crate::settings::{Method, Settings};
+use crate::sh::SH_COUNT;
 use crate::stage::{StageTimer, progress_bar};
 use metrics::{cost_at_error, error_stats, loglog_at, sh_band_rmse};
 
@@ -111,8 +112,16 @@ pub fn sweep(
     pb.inc(1);
     let shared_seconds = timer.total();
     let shared_stages = timer.into_stages();
-    let ref_ao = &reference.bake.ao;
-    let ref_sh = &reference.bake.sh;
+    // Texels inside geometry never reach the output (the fill replaces
+    // them with their nearest valid texel's value), and the adaptive method
+    // spends only its pre-pass on them: every run is compared on the others.
+    let compared: Vec<usize> = (0..texels).filter(|&i| !prepared.inside[i]).collect();
+    let pick = |v: &[f32]| -> Vec<f32> { compared.iter().map(|&i| v[i]).collect() };
+    let pick_sh = |v: &[[f32; SH_COUNT]]| -> Vec<[f32; SH_COUNT]> {
+        compared.iter().map(|&i| v[i]).collect()
+    };
+    let ref_ao = &pick(&reference.bake.ao);
+    let ref_sh = &pick_sh(&reference.bake.sh);
     let ref_sh_flat: Vec<f32> = ref_sh.iter().flatten().copied().collect();
 
     let mut runs = Vec::new();
@@ -125,12 +134,21 @@ pub fn sweep(
         let mut run_timer = StageTimer::new();
         let passes = pipeline::bake_prepared(&prepared, &s, &mut run_timer)?;
         let bake_seconds = run_timer.total();
-        let ao = error_stats(&passes.bake.ao, ref_ao);
-        let sh_flat: Vec<f32> = passes.bake.sh.iter().flatten().copied().collect();
+        let ao = error_stats(&pick(&passes.bake.ao), ref_ao);
+        let run_sh = pick_sh(&passes.bake.sh);
+        let sh_flat: Vec<f32> = run_sh.iter().flatten().copied().collect();
         let fs = passes.filter_stats.as_ref();
         let default_settings = b.is_default();
         if default_settings && !default_ao.iter().any(|(l, _)| *l == label) {
-            default_ao.push((label.clone(), passes.bake.ao.clone()));
+            // The maps show texels inside geometry as the reference's (not
+            // compared: filled in the output).
+            let mut ao = passes.bake.ao.clone();
+            for (i, a) in ao.iter_mut().enumerate() {
+                if prepared.inside[i] {
+                    *a = reference.bake.ao[i];
+                }
+            }
+            default_ao.push((label.clone(), ao));
             if let Some(f) = fs {
                 brute_fraction = Some(f.brute_fraction.clone());
             }
@@ -145,7 +163,7 @@ pub fn sweep(
             rays_cast: passes.bake.rays,
             rays_per_texel: passes.bake.rays as f64 / texels.max(1) as f64,
             ao,
-            sh_rmse_band: sh_band_rmse(&passes.bake.sh, ref_sh),
+            sh_rmse_band: sh_band_rmse(&run_sh, ref_sh),
             sh_rmse: error_stats(&sh_flat, &ref_sh_flat).rmse,
             cells_filtered: fs.map(|f| f.cell_share(f.cells_filtered)),
             cells_brute_forced: fs.map(|f| f.cell_share(f.cells_brute)),
@@ -158,7 +176,7 @@ pub fn sweep(
 
     let stability = if rs.stability_rays > 0 {
         pb.set_message("scale stability");
-        let r = stability(scene, &base, &prepared, rs, ref_ao)?;
+        let r = stability(scene, &base, &prepared, rs, &reference.bake.ao)?;
         pb.inc(3);
         r
     } else {
@@ -175,6 +193,7 @@ pub fn sweep(
         atlas_width: prepared.atlas.width,
         atlas_height: prepared.atlas.height,
         texels,
+        texels_inside: texels - compared.len(),
         charts: prepared.atlas.charts,
         occluder_triangles: prepared.tracer.triangle_count(),
         max_distance_world: prepared.max_distance_world,
