@@ -1,8 +1,10 @@
 //! Adaptive sampling with an axis-aligned filter (`--method adaptive`):
 //! the cheap form of Egan et al.'s frequency analysis, after Mehta, Wang
 //! and Ramamoorthi 2012/2013 (see `shared/notes/axis-aligned-filtering.md`).
-//! The default method: on the Cornell box at 1024 it reaches 256-ray Monte
-//! Carlo's error in 0.18x its time (see the README).
+//! On the Cornell box at 1024 it reaches 256-ray Monte Carlo's error in
+//! 0.18x its time; on the engine, the curtains and Sponza at 512 it is
+//! slower than Monte Carlo at equal error, so it is not the default (see
+//! the README).
 //!
 //! In: [`Receivers`] with their `inside` marks, a [`Tracer`],
 //! [`AdaptiveOptions`], [`BakeParams`], the [`StageTimer`]. Out: a [`Bake`]
