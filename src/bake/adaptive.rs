@@ -157,7 +157,8 @@ impl AdaptiveOptions {
 
     /// Bytes per atlas texel beyond what every method holds (its results,
     /// AO and SH, which the filter's column pass writes), at the peak, the
-    /// filter's row pass: ray counts, spread z_min and sigma (12 B per cell), the
+    /// filter's row pass: ray counts (4 B), spread z_min and sigma (8 B per
+    /// cell), the
     /// texel map (4 B), the filter's input (AO and SH: 40 B) and its row
     /// pass (44 B). Before it, the pre-pass and bounds hold less: running
     /// sums (44 B), own z_min, and the bounds' working arrays (sd twice,
@@ -246,13 +247,21 @@ pub fn cell_of_point(u: Vec2, cells: usize) -> usize {
     }
 }
 
-/// Whether receivers with shading normals `a` and `b` have cells that see
-/// the same directions: their frames' tangents within 25 degrees. (The
-/// frame of [`Frame::from_normal`] turns by half a turn where a normal's z
-/// changes sign.)
+/// The frame tangent a receiver with shading normal `n` compares its
+/// neighbours' with: none with one cell (every compatible neighbour lends).
 #[inline]
-fn frames_agree(tangent_a: Vec3, b: Vec3) -> bool {
-    tangent_a.dot(Frame::from_normal(b).tangent) >= CELL_AGREEMENT
+fn cell_tangent(cells: usize, n: Vec3) -> Option<Vec3> {
+    (cells > 1).then(|| Frame::from_normal(n).tangent)
+}
+
+/// Whether a neighbour with shading normal `b` has cells that see the same
+/// directions as those of the receiver with `tangent` ([`cell_tangent`]):
+/// their frames' tangents within [`CELL_AGREEMENT`]. (The frame of
+/// [`Frame::from_normal`] turns by half a turn where a normal's z changes
+/// sign.)
+#[inline]
+fn cells_agree(tangent: Option<Vec3>, b: Vec3) -> bool {
+    tangent.is_none_or(|t| t.dot(Frame::from_normal(b).tangent) >= CELL_AGREEMENT)
 }
 
 /// Frame agreement of cells that lend to each other: cos 5 degrees.
@@ -324,18 +333,6 @@ pub const ALPHA: f64 = 1.4;
 /// 256-ray Monte Carlo's AO RMSE on the Cornell box and 1.23x on Sponza
 /// (1024 texels, 2048-ray reference), so the margin is 1.23^2 = 1.5.
 pub const MODEL_MARGIN: f64 = 1.5;
-
-/// [`allocate_variances`] for receivers of one cell with visibility spread
-/// `sd` whose filter averages `n_eff` receivers.
-pub fn allocate(sd: &[f32], n_eff: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
-    let unfiltered: Vec<f32> = sd.iter().map(|s| s * s).collect();
-    let filtered: Vec<f32> = unfiltered
-        .iter()
-        .zip(n_eff)
-        .map(|(v, m)| v / m.max(1.0))
-        .collect();
-    allocate_variances(&filtered, &unfiltered, o)
-}
 
 /// Ray counts for receivers whose one-ray variance is `unfiltered` before
 /// the filter and `filtered` after it (sd^2 / n_eff for one cell; the mean
@@ -467,6 +464,15 @@ pub fn bake(
     // counts its outputs only).
     let (z_min, sigma_texels, target) = {
         let width = |z: f32, r: usize| sigma_in_texels(z, receivers.footprint[r], inside[r], o);
+        // A receiver's filter support for its own z_min: 2 sigma, all of
+        // max_reach when it saw nothing.
+        let support_of = |z: f32, r: usize| {
+            if z.is_infinite() {
+                o.max_reach
+            } else {
+                (2.0 * width(z, r)).ceil() as u32
+            }
+        };
         let mut z_min: Vec<Vec<f32>> = Vec::with_capacity(cells);
         let mut sigma_texels: Vec<Vec<f32>> = Vec::with_capacity(cells);
         // Per receiver, sum over its cells of sd^2 / n_eff and of sd^2: how
@@ -479,15 +485,7 @@ pub fn bake(
             // own z_min, all of max_reach when it saw nothing): a receiver is
             // filtered no wider than the nearest occluder any texel under its
             // filter saw.
-            let support: Vec<u32> = (0..n)
-                .map(|r| {
-                    if own[r].is_infinite() {
-                        o.max_reach
-                    } else {
-                        (2.0 * width(own[r], r)).ceil() as u32
-                    }
-                })
-                .collect();
+            let support: Vec<u32> = (0..n).map(|r| support_of(own[r], r)).collect();
             let z = spread_min(receivers, &grid, inside, cells, &own, &support);
             drop(own);
             let sigma: Vec<f32> = (0..n).map(|r| width(z[r], r)).collect();
@@ -543,10 +541,13 @@ pub fn bake(
                     let z = (0..cells)
                         .map(|c| own_z[r * cells + c])
                         .fold(f32::INFINITY, f32::min);
+                    // (Nothing seen: max_reach, not raised to SD_REACH as
+                    // the one-cell path raises it.)
+                    let support = support_of(z, r);
                     if z.is_infinite() {
-                        o.max_reach
+                        support
                     } else {
-                        ((2.0 * width(z, r)).ceil() as u32).max(SD_REACH)
+                        support.max(SD_REACH)
                     }
                 })
                 .collect();
@@ -748,7 +749,7 @@ impl TexelGrid {
 }
 
 /// A separable reduction over the compatible (normals within 25 degrees,
-/// not inside; with more than one cell, frames within 25 degrees)
+/// not inside; with more than one cell, frames agreeing: [`cells_agree`])
 /// receivers within `reach` texels, rows then columns: `fold` over the
 /// values (the receiver's own included), then `finish` with the count.
 #[allow(clippy::too_many_arguments)]
@@ -769,7 +770,7 @@ fn separable(
             .with_min_len(256)
             .map(|r| {
                 let n = receivers.normal[r];
-                let tangent = Frame::from_normal(n).tangent;
+                let tangent = cell_tangent(cells, n);
                 let (acc, count) = grid
                     .line(receivers, r, reach[r] as usize, vertical)
                     .filter(|&j| {
@@ -777,7 +778,7 @@ fn separable(
                         j == r
                             || (!inside[j]
                                 && nj.dot(n) >= SPREAD_AGREEMENT
-                                && (cells == 1 || frames_agree(tangent, nj)))
+                                && cells_agree(tangent, nj))
                     })
                     .fold((init, 0u32), |(a, c), j| (fold(a, src[j]), c + 1));
                 finish(acc, count)
@@ -865,14 +866,14 @@ impl FilterSupport<'_> {
         let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
         let reach = (2.0 * sigma).ceil() as usize;
         let (pr, n, geo) = (rc.position[r], rc.normal[r], rc.geo_normal[r]);
-        let tangent = Frame::from_normal(n).tangent;
+        let tangent = cell_tangent(self.cells, n);
         for j in self.grid.line(rc, r, reach, vertical) {
             let rel = rc.position[j] - pr;
             if j != r
                 && (self.inside[j]
                     || rel.length() > self.z_min[r]
                     || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], fp)
-                    || (self.cells > 1 && !frames_agree(tangent, rc.normal[j])))
+                    || !cells_agree(tangent, rc.normal[j]))
             {
                 continue;
             }
@@ -966,6 +967,18 @@ impl FilterSupport<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`allocate_variances`] for receivers of one cell with visibility
+    /// spread `sd` whose filter averages `n_eff` receivers.
+    fn allocate(sd: &[f32], n_eff: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
+        let unfiltered: Vec<f32> = sd.iter().map(|s| s * s).collect();
+        let filtered: Vec<f32> = unfiltered
+            .iter()
+            .zip(n_eff)
+            .map(|(v, m)| v / m.max(1.0))
+            .collect();
+        allocate_variances(&filtered, &unfiltered, o)
+    }
 
     #[test]
     fn every_block_of_four_rays_has_one_in_each_cell() {
@@ -1228,6 +1241,16 @@ mod tests {
             },
             AdaptiveOptions {
                 mu: f32::NAN,
+                ..Default::default()
+            },
+            AdaptiveOptions {
+                cells: 2,
+                ..Default::default()
+            },
+            AdaptiveOptions {
+                cells: 4,
+                pre_rays: 2,
+                max_rays: 2,
                 ..Default::default()
             },
             AdaptiveOptions {
