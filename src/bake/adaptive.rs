@@ -28,7 +28,9 @@
 //!    mean is `mean_rays`), rounded to powers of two (whole Sobol blocks
 //!    keep the stratification) in [`pre_rays`, `max_rays`]; the second
 //!    batch continues the receiver's sequence. A receiver whose
-//!    neighbourhood saw nothing stops at the pre-pass.
+//!    neighbourhood saw nothing has the variance all of the
+//!    neighbourhood's pre-pass rays seeing nothing allow: few rays beside
+//!    many open receivers, more on a small chart.
 //! 4. *Filter*: each receiver's integrated AO and the occluded rays' 9 SH
 //!    sums averaged over its atlas neighbours with Gaussian weights on the
 //!    offset in its tangent plane, rows then columns (separable), through
@@ -508,13 +510,24 @@ pub fn bake(
                 z_min: &z,
             }
             .effective_neighbours();
-            // Cells whose neighbourhood saw nothing add no variance.
+            // A cell whose neighbourhood saw nothing: the variance that
+            // all of the neighbourhood's rays (cell_rays per receiver)
+            // seeing nothing still allows, not none (its own 16 rays
+            // seeing nothing leave a 1-in-10 occluder unseen).
+            let seen_nothing = (0..n).any(|r| z[r].is_infinite());
+            let count = if seen_nothing {
+                neighbourhood_count(receivers, &grid, inside, cells, &sd_reach)
+            } else {
+                Vec::new()
+            };
             for r in 0..n {
-                if !z[r].is_infinite() {
-                    let v = sd[r] * sd[r];
-                    left[r].0 += v / n_eff[r].max(1.0);
-                    left[r].1 += v;
-                }
+                let v = if z[r].is_infinite() {
+                    nothing_seen_variance(cell_rays, count[r])
+                } else {
+                    sd[r] * sd[r]
+                };
+                left[r].0 += v / n_eff[r].max(1.0);
+                left[r].1 += v;
             }
             z_min.push(z);
             sigma_texels.push(sigma);
@@ -522,8 +535,9 @@ pub fn bake(
         // The receiver's variance from its whole pre-pass (its cells' 4-ray
         // spreads are too coarse to add up: smoothed, a fully occluded cell
         // looks as noisy as a half-occluded one), times the share the cells'
-        // filters leave. Receivers inside geometry or whose neighbourhood
-        // saw nothing: the pre-pass only.
+        // filters leave; when no cell's neighbourhood saw anything, the
+        // variance all of its rays allow. Receivers inside geometry: the
+        // pre-pass only.
         let (unfiltered, filtered): (Vec<f32>, Vec<f32>) = if cells == 1 {
             left.iter()
                 .enumerate()
@@ -552,13 +566,19 @@ pub fn bake(
                 })
                 .collect();
             let sd = neighbourhood_mean(receivers, &grid, inside, 1, &own_sd, &reach);
+            let count = neighbourhood_count(receivers, &grid, inside, 1, &reach);
             (0..n)
                 .map(|r| {
                     let (f, u) = left[r];
+                    let seen = (0..cells).any(|c| z_min[c][r].is_finite());
+                    let v = if seen {
+                        sd[r] * sd[r]
+                    } else {
+                        nothing_seen_variance(o.pre_rays, count[r])
+                    };
                     if inside[r] || u <= 0.0 {
                         (0.0, 0.0)
                     } else {
-                        let v = sd[r] * sd[r];
                         (v, v * f / u)
                     }
                 })
@@ -717,6 +737,20 @@ impl TexelGrid {
         }
     }
 
+    /// The receiver `k` texels (signed) from receiver `r`'s texel along a
+    /// row (`vertical` false) or a column, if any.
+    #[inline]
+    fn offset(&self, receivers: &Receivers, r: usize, k: isize, vertical: bool) -> Option<usize> {
+        let t = receivers.texel[r] as usize;
+        let (x, y) = ((t % self.width) as isize, (t / self.width) as isize);
+        let (x, y) = if vertical { (x, y + k) } else { (x + k, y) };
+        if x < 0 || y < 0 || x >= self.width as isize || y >= self.height as isize {
+            return None;
+        }
+        let j = self.receiver[y as usize * self.width + x as usize];
+        (j != NO_RECEIVER).then_some(j as usize)
+    }
+
     /// Receivers within `reach` texels of receiver `r`'s texel along a row
     /// (`vertical` false) or a column.
     #[inline]
@@ -789,6 +823,39 @@ fn separable(
     pass(&rows, true)
 }
 
+/// The number of compatible receivers within `reach` texels of each
+/// receiver (the support of [`neighbourhood_mean`]), its own included.
+fn neighbourhood_count(
+    receivers: &Receivers,
+    grid: &TexelGrid,
+    inside: &[bool],
+    cells: usize,
+    reach: &[u32],
+) -> Vec<f32> {
+    let ones = vec![1.0f32; receivers.len()];
+    separable(
+        receivers,
+        grid,
+        inside,
+        cells,
+        &ones,
+        reach,
+        |a, v| a + v,
+        0.0,
+        |s, _| s,
+    )
+}
+
+/// The one-ray visibility variance a receiver may still have when `count`
+/// receivers' `rays` rays each (its neighbourhood's) all saw nothing:
+/// [`visibility_sd`] of all of them visible, squared.
+#[inline]
+pub fn nothing_seen_variance(rays: u32, count: f32) -> f32 {
+    // The occluded side's smoothed fraction, without 1 - p's cancellation.
+    let q = 0.5 / (rays as f32 * count.max(1.0) + 1.0);
+    q * (1.0 - q)
+}
+
 /// z_min spread: the minimum of the receivers' own z_min over the
 /// compatible receivers within each one's `reach` texels, its own included.
 fn spread_min(
@@ -851,9 +918,10 @@ struct FilterSupport<'a> {
 impl FilterSupport<'_> {
     /// Calls `f(j, w)` for each receiver j that lends to receiver `r` along
     /// its row (`vertical` false) or column, with its Gaussian weight w on
-    /// the offset in r's tangent plane; r itself has w = 1. Neighbours
-    /// inside geometry, beyond z_min or failing the leak rule are left
-    /// out. Nothing for an unfiltered receiver.
+    /// the offset in r's tangent plane; r itself has w = 1. A side's run
+    /// ends at the first neighbour inside geometry, beyond z_min, failing
+    /// the leak rule or missing (a chart border), and both sides keep the
+    /// shorter run's length. Nothing for an unfiltered receiver.
     #[inline]
     fn for_each_weight(&self, r: usize, vertical: bool, mut f: impl FnMut(usize, f32)) {
         let sigma = self.sigma_texels[r];
@@ -864,21 +932,40 @@ impl FilterSupport<'_> {
         let fp = rc.footprint[r];
         let sigma_world = sigma * fp;
         let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
-        let reach = (2.0 * sigma).ceil() as usize;
+        let reach = ((2.0 * sigma).ceil() as usize).min(MAX_REACH as usize);
         let (pr, n, geo) = (rc.position[r], rc.normal[r], rc.geo_normal[r]);
         let tangent = cell_tangent(self.cells, n);
-        for j in self.grid.line(rc, r, reach, vertical) {
-            let rel = rc.position[j] - pr;
-            if j != r
-                && (self.inside[j]
+        // Each side's run of lending receivers, outward from r, up to the
+        // first that does not lend (or no receiver: a chart border).
+        let side = |dir: isize, out: &mut [(usize, f32); MAX_REACH as usize]| -> usize {
+            for k in 1..=reach {
+                let Some(j) = self.grid.offset(rc, r, dir * k as isize, vertical) else {
+                    return k - 1;
+                };
+                let rel = rc.position[j] - pr;
+                if self.inside[j]
                     || rel.length() > self.z_min[r]
                     || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], fp)
-                    || !cells_agree(tangent, rc.normal[j]))
-            {
-                continue;
+                    || !cells_agree(tangent, rc.normal[j])
+                {
+                    return k - 1;
+                }
+                let t = rel - geo * rel.dot(geo);
+                out[k - 1] = (j, (-t.length_squared() * inv2s2).exp());
             }
-            let tangent = rel - geo * rel.dot(geo);
-            f(j, (-tangent.length_squared() * inv2s2).exp());
+            reach
+        };
+        let mut lo = [(0usize, 0.0f32); MAX_REACH as usize];
+        let mut hi = [(0usize, 0.0f32); MAX_REACH as usize];
+        // Symmetric truncation: as many texels on each side as the shorter
+        // run, so the weights stay centred on r where a chart border or a
+        // rejected neighbour cuts one side (a one-sided average of a
+        // gradient is biased by the gradient times the offset).
+        let k = side(-1, &mut lo).min(side(1, &mut hi));
+        f(r, 1.0);
+        for (&(a, wa), &(b, wb)) in lo[..k].iter().zip(&hi[..k]) {
+            f(a, wa);
+            f(b, wb);
         }
     }
 
@@ -1086,8 +1173,11 @@ mod tests {
             let centre = (side * side / 2) as usize;
             let (c, d) = (ours[centre] as f64, direct(-reach..=reach));
             assert!((c - d).abs() / d < 1e-3, "{sigma}: {c} vs {d}");
-            let (c, d) = (ours[0] as f64, direct(0..=reach));
-            assert!((c - d).abs() / d < 1e-3, "corner {sigma}: {c} vs {d}");
+            // Near a border both sides keep the shorter run: one texel in
+            // from a corner, a 3x3 square; the corner itself, alone.
+            let (c, d) = (ours[(side + 1) as usize] as f64, direct(-1..=1));
+            assert!((c - d).abs() / d < 1e-3, "by a corner {sigma}: {c} vs {d}");
+            assert_eq!(ours[0], 1.0);
             // Unfiltered receivers average only themselves.
             let none = vec![0.0f32; n];
             let alone = FilterSupport {
@@ -1095,6 +1185,71 @@ mod tests {
                 ..support
             };
             assert!(alone.effective_neighbours().iter().all(|&v| v == 1.0));
+        }
+    }
+
+    #[test]
+    fn nothing_seen_leaves_less_variance_the_more_rays_saw_nothing() {
+        // 16 rays seeing nothing: p = 0.5 / 17 occluded, variance p (1 - p).
+        let p = 0.5f32 / 17.0;
+        assert!((nothing_seen_variance(16, 1.0) - p * (1.0 - p)).abs() < 1e-6);
+        // No count is one receiver; more receivers, less variance, never 0.
+        assert_eq!(
+            nothing_seen_variance(16, 0.0),
+            nothing_seen_variance(16, 1.0)
+        );
+        let v: Vec<f32> = [1.0f32, 9.0, 81.0, 1e12]
+            .iter()
+            .map(|&c| nothing_seen_variance(16, c))
+            .collect();
+        assert!(v.windows(2).all(|w| w[1] < w[0]) && v[3] > 0.0, "{v:?}");
+        assert!((v[2] * 16.0 * 81.0 - 0.5).abs() < 0.01);
+    }
+
+    #[test]
+    fn the_filter_keeps_a_gradient_up_to_a_chart_border() {
+        // AO rising linearly across a chart whose right part is missing
+        // (another chart's texels): a one-sided average beside the border
+        // would be biased by the slope times the weights' offset; the
+        // symmetric support keeps the ramp exact to rounding.
+        let side = 12u32;
+        let full = flat_grid(side);
+        // Keep columns 0..8: the chart border is between columns 7 and 8.
+        let keep: Vec<usize> = (0..full.len())
+            .filter(|&t| t % side as usize <= 7)
+            .collect();
+        let rc = Receivers {
+            texel: keep.iter().map(|&t| t as u32).collect(),
+            position: keep.iter().map(|&t| full.position[t]).collect(),
+            normal: keep.iter().map(|&t| full.normal[t]).collect(),
+            geo_normal: keep.iter().map(|&t| full.geo_normal[t]).collect(),
+            footprint: keep.iter().map(|&t| full.footprint[t]).collect(),
+            ..full
+        };
+        let grid = TexelGrid::new(&rc);
+        let n = rc.len();
+        let inside = vec![false; n];
+        let sigmas = vec![2.0f32; n];
+        let z_min = vec![f32::INFINITY; n];
+        let support = FilterSupport {
+            receivers: &rc,
+            grid: &grid,
+            inside: &inside,
+            cells: 1,
+            sigma_texels: &sigmas,
+            z_min: &z_min,
+        };
+        let ramp = |r: usize| 0.1 + 0.1 * rc.position[r].x;
+        let values: Vec<[f32; 10]> = (0..n).map(|r| [ramp(r); 10]).collect();
+        let (ao, sh) = support.filter(values);
+        for r in 0..n {
+            assert!(
+                (ao[r] - ramp(r)).abs() < 1e-5,
+                "texel {}: {}",
+                rc.texel[r],
+                ao[r]
+            );
+            assert!((sh[r][8] - ramp(r)).abs() < 1e-5);
         }
     }
 
