@@ -1,10 +1,8 @@
 //! Adaptive sampling with an axis-aligned filter (`--method adaptive`):
 //! the cheap form of Egan et al.'s frequency analysis, after Mehta, Wang
 //! and Ramamoorthi 2012/2013 (see `shared/notes/axis-aligned-filtering.md`).
-//! On the Cornell box at 1024 it reaches 256-ray Monte Carlo's error in
-//! 0.18x its time; on the engine, the curtains and Sponza at 512 it is
-//! slower than Monte Carlo at equal error, so it is not the default (see
-//! the README).
+//! Measured against 256-ray Monte Carlo at equal error in the README's
+//! comparison table.
 //!
 //! In: [`Receivers`] with their `inside` marks, a [`Tracer`],
 //! [`AdaptiveOptions`], [`BakeParams`], the [`StageTimer`]. Out: a [`Bake`]
@@ -14,13 +12,17 @@
 //!    of its own sequence (the Monte Carlo baker's, stream 0): its own
 //!    z_min (nearest hit distance within the max distance), the visible
 //!    count and the occluded rays' SH sums.
-//! 2. *Bounds*: z_min spread to the minimum over the compatible receivers
-//!    under each receiver's own filter support (2 sigma of its own z_min,
-//!    `max_reach` texels when it saw nothing; rows, then columns), so an
-//!    open-looking receiver beside occluded ones is not filtered wide.
-//!    Filter width sigma = z_min / (2 mu Omega_h) (occlusion from occluders
-//!    at >= z_min is bandlimited in space at Omega_h / z_min), at most
-//!    `max_reach / 2` texels; below half a texel (contact) no filtering.
+//! 2. *Bounds*: filter width sigma = z_min / (2 mu Omega_h) (occlusion
+//!    from occluders at >= z_min is bandlimited in space at
+//!    Omega_h / z_min), at most `max_reach / 2` texels; below half a texel
+//!    (contact) no filtering. z_min is spread: per reach k, the minimum of
+//!    the compatible receivers' own z_min within k texels (rows, then
+//!    columns) allows a filter of at most k / 2 texels, and each receiver
+//!    takes the widest such filter ([`widest_filters`]), so an
+//!    open-looking receiver beside occluded ones is not filtered wide and
+//!    no filter reads a receiver that saw a nearer occluder than its
+//!    width allows. The ray counts read the minimum over the support of
+//!    the receiver's own z_min (2 sigma, `max_reach` when it saw nothing).
 //! 3. *Ray counts*: each receiver's total in proportion to
 //!    sd / sqrt(N_eff) (sd of the pre-pass visibility over its
 //!    neighbourhood, N_eff the receivers its filter really averages),
@@ -480,6 +482,8 @@ pub fn bake(
         // Per receiver, sum over its cells of sd^2 / n_eff and of sd^2: how
         // much of its variance the filter leaves.
         let mut left = vec![(0.0f32, 0.0f32); n];
+        // Per receiver, whether any cell's neighbourhood saw an occluder.
+        let mut seen = vec![false; n];
         let cell_rays = o.pre_rays / o.cells;
         for cell in 0..cells {
             let own: Vec<f32> = (0..n).map(|r| own_z[r * cells + cell]).collect();
@@ -489,8 +493,16 @@ pub fn bake(
             // filter saw.
             let support: Vec<u32> = (0..n).map(|r| support_of(own[r], r)).collect();
             let z = spread_min(receivers, &grid, inside, cells, &own, &support);
+            // The filter: the widest whose support's own z_min allow it.
+            let (mut z_filter, sigma) =
+                widest_filters(receivers, &grid, inside, cells, &own, o, width);
             drop(own);
-            let sigma: Vec<f32> = (0..n).map(|r| width(z[r], r)).collect();
+            // Unfiltered: the spread z_min, as the allocation reads it.
+            for ((zf, &s), &z) in z_filter.iter_mut().zip(&sigma).zip(&z) {
+                if s <= 0.0 {
+                    *zf = z;
+                }
+            }
             // 3. Ray counts, from the neighbourhood's visibility spread rather
             // than the receiver's own, so a count does not depend on the
             // receiver's own first rays. Measured: no change on the floor
@@ -507,7 +519,7 @@ pub fn bake(
                 inside,
                 cells,
                 sigma_texels: &sigma,
-                z_min: &z,
+                z_min: &z_filter,
             }
             .effective_neighbours();
             // A cell whose neighbourhood saw nothing: the variance that
@@ -528,8 +540,9 @@ pub fn bake(
                 };
                 left[r].0 += v / n_eff[r].max(1.0);
                 left[r].1 += v;
+                seen[r] |= z[r].is_finite();
             }
-            z_min.push(z);
+            z_min.push(z_filter);
             sigma_texels.push(sigma);
         }
         // The receiver's variance from its whole pre-pass (its cells' 4-ray
@@ -570,8 +583,7 @@ pub fn bake(
             (0..n)
                 .map(|r| {
                     let (f, u) = left[r];
-                    let seen = (0..cells).any(|c| z_min[c][r].is_finite());
-                    let v = if seen {
+                    let v = if seen[r] {
                         sd[r] * sd[r]
                     } else {
                         nothing_seen_variance(o.pre_rays, count[r])
@@ -821,6 +833,42 @@ fn separable(
     };
     let rows = pass(values, false);
     pass(&rows, true)
+}
+
+/// Each receiver's filter: per reach k = 0..=max_reach texels, the spread
+/// z_min m_k (the minimum of the receivers' `own` over the compatible
+/// receivers within k texels) allows sigma_k = min(width(m_k), k / 2), a
+/// filter that reads only receivers whose own z_min is at least m_k; the
+/// widest sigma_k wins (ties: the smaller k, the larger z_min). Returns
+/// each receiver's (z_min, sigma in texels), sigma 0 (contact) when no
+/// reach allows half a texel. Spreading over the support of the
+/// receiver's own z_min instead made an open receiver 3 texels from a
+/// contact occluder a contact receiver (sigma of the occluder's z_min),
+/// though a 2-texel filter reads only open receivers.
+fn widest_filters(
+    receivers: &Receivers,
+    grid: &TexelGrid,
+    inside: &[bool],
+    cells: usize,
+    own: &[f32],
+    o: &AdaptiveOptions,
+    width: impl Fn(f32, usize) -> f32 + Sync,
+) -> (Vec<f32>, Vec<f32>) {
+    let n = receivers.len();
+    let mut best: Vec<(f32, f32)> = (0..n).map(|r| (own[r], 0.0)).collect();
+    for k in 1..=o.max_reach {
+        let m = spread_min(receivers, grid, inside, cells, own, &vec![k; n]);
+        best.par_iter_mut()
+            .enumerate()
+            .with_min_len(4096)
+            .for_each(|(r, b)| {
+                let s = width(m[r], r).min(k as f32 / 2.0);
+                if s >= 0.5 && s > b.1 {
+                    *b = (m[r], s);
+                }
+            });
+    }
+    best.into_iter().unzip()
 }
 
 /// The number of compatible receivers within `reach` texels of each
@@ -1204,6 +1252,37 @@ mod tests {
             .collect();
         assert!(v.windows(2).all(|w| w[1] < w[0]) && v[3] > 0.0, "{v:?}");
         assert!((v[2] * 16.0 * 81.0 - 0.5).abs() < 0.01);
+    }
+
+    #[test]
+    fn a_filter_reads_only_receivers_whose_own_z_min_allow_its_width() {
+        // Open receivers (nothing seen) around one that saw an occluder at
+        // 0.5 texels (contact: sigma 0.13). Footprint 1, max_reach 4.
+        let rc = flat_grid(9);
+        let grid = TexelGrid::new(&rc);
+        let n = rc.len();
+        let inside = vec![false; n];
+        let mut own = vec![f32::INFINITY; n];
+        let at = |x: usize, y: usize| y * 9 + x;
+        own[at(4, 4)] = 0.5;
+        let o = AdaptiveOptions::default();
+        let width = |z: f32, r: usize| sigma_in_texels(z, rc.footprint[r], inside[r], &o);
+        let (z, sigma) = widest_filters(&rc, &grid, &inside, 1, &own, &o, width);
+        // The contact receiver and its neighbours: not filtered.
+        assert_eq!(sigma[at(4, 4)], 0.0);
+        assert_eq!(sigma[at(5, 4)], 0.0);
+        assert_eq!(sigma[at(5, 5)], 0.0);
+        // 3 texels away: a 2-texel reach (sigma 1) reads only open
+        // receivers; 4 away, 3 texels (sigma 1.5); the support's z_min
+        // stays unbounded.
+        assert_eq!((z[at(7, 4)], sigma[at(7, 4)]), (f32::INFINITY, 1.0));
+        assert_eq!((z[at(0, 0)], sigma[at(0, 0)]), (f32::INFINITY, 1.5));
+        // No reach of any filter holds the contact receiver.
+        for r in 0..n {
+            let reach = (2.0 * sigma[r]).ceil() as usize;
+            let (dx, dy) = ((r % 9).abs_diff(4), (r / 9).abs_diff(4));
+            assert!(sigma[r] == 0.0 || dx.max(dy) > reach, "texel {r}");
+        }
     }
 
     #[test]
