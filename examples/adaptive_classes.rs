@@ -116,6 +116,8 @@ fn main() {
         let mut acc = [[0.0f64; 6]; 4]; // count, sum e, sum e2, rays, sh l2 e2, abs>0.05
         let mut total = 0.0;
         let mut errs = Vec::new();
+        // Squared SH error per band (L0, L1, L2), summed over texels.
+        let mut bands = [0.0f64; 3];
         for i in 0..n {
             if p.inside[i] {
                 continue;
@@ -130,16 +132,27 @@ fn main() {
                 c[4] += ((a - b) as f64).powi(2) / 5.0;
             }
             c[5] += (e.abs() > 0.05) as u8 as f64;
+            for (k, (a, b)) in out.bake.sh[i].iter().zip(&ref_sh[i]).enumerate() {
+                let (band, width) = match k {
+                    0 => (0, 1.0),
+                    1..=3 => (1, 3.0),
+                    _ => (2, 5.0),
+                };
+                bands[band] += ((a - b) as f64).powi(2) / width;
+            }
             total += e * e;
             errs.push(e.abs());
         }
         errs.sort_by(|a, b| a.partial_cmp(b).unwrap());
         let m: f64 = acc.iter().map(|c| c[0]).sum();
         println!(
-            "{} ({secs:.2} s): AO RMSE {:.4}, p99 {:.4}, rays {:.1}",
+            "{} ({secs:.2} s): AO RMSE {:.5}, p99 {:.5}, SH RMSE L0/L1/L2 {:.5}/{:.5}/{:.5}, rays {:.1}",
             budget.label(),
             (total / m).sqrt(),
             errs[(errs.len() as f64 * 0.99) as usize],
+            (bands[0] / m).sqrt(),
+            (bands[1] / m).sqrt(),
+            (bands[2] / m).sqrt(),
             acc.iter().map(|c| c[3]).sum::<f64>() / m
         );
         for (k, c) in acc.iter().enumerate() {

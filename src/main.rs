@@ -38,9 +38,9 @@ enum MethodArg {
     /// The sheared filter of Egan et al. 2011: sparse rays shared between texels, brute force where needed (`filtered` is accepted too).
     #[value(alias = "filtered")]
     Sheared,
-    /// Brute-force Monte Carlo (the default).
+    /// Brute-force Monte Carlo.
     Mc,
-    /// Adaptive ray counts and an axis-aligned filter of the integrated values.
+    /// Adaptive ray counts and an axis-aligned filter of the integrated values (the default).
     Adaptive,
 }
 

@@ -66,6 +66,30 @@ pub fn from_occluded(n: Vec3, occluded_sum: &[f32; SH_COUNT], rays: u32) -> [f32
     std::array::from_fn(|i| open[i] - occluded_sum[i] * inv)
 }
 
+/// The occluded share (less) of a receiver with normal n, from `rays`
+/// cosine-weighted rays around n whose occluded ones summed
+/// `occluded_sum` and all of which summed `all_sum`, with the open
+/// hemisphere's exact projection as a control variate of weight
+/// `visible` (the receiver's visible fraction): `from_occluded` less the
+/// open projection at `visible` 1 (exact for an open receiver), the
+/// visible rays' own sum at 0 (exact for a closed one: the occluded
+/// rays' sum then carries the sampling error of the hemisphere, all_sum
+/// less the open projection, which a few rays leave large). Add
+/// [`open_hemisphere`] for the coefficients.
+#[inline]
+pub fn occluded_share(
+    n: Vec3,
+    occluded_sum: &[f32; SH_COUNT],
+    all_sum: &[f32; SH_COUNT],
+    rays: u32,
+    visible: f32,
+) -> [f32; SH_COUNT] {
+    let open = open_hemisphere(n);
+    let inv = 1.0 / rays.max(1) as f32;
+    let w = 1.0 - visible.clamp(0.0, 1.0);
+    std::array::from_fn(|i| -occluded_sum[i] * inv + w * (all_sum[i] * inv - open[i]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -108,5 +132,48 @@ mod tests {
             let v = integrate(|w| (n.dot(w).max(0.0) * basis(w)[i]) as f64) / std::f64::consts::PI;
             assert!((v - ci as f64).abs() < 2e-3, "c{i}: {v} vs {ci}");
         }
+    }
+
+    #[test]
+    fn occluded_share_is_exact_for_closed_and_open_receivers() {
+        // 16 cosine-weighted rays of a scrambled sequence around n: their
+        // sum of Y is not the open projection (sampling error).
+        let n = Vec3::new(0.2, 0.4, 0.9).normalize();
+        let frame = crate::sample::Frame::from_normal(n);
+        let mut all = [0.0f32; SH_COUNT];
+        for i in 0..16 {
+            let u = crate::sample::sobol_2d(i, 7);
+            accumulate(
+                &mut all,
+                1.0,
+                frame.to_world(crate::sample::cosine_hemisphere(u)),
+            );
+        }
+        let open = open_hemisphere(n);
+        let error: f32 = (0..SH_COUNT).map(|i| (all[i] / 16.0 - open[i]).abs()).sum();
+        assert!(error > 1e-3, "the rays' sum should differ: {error}");
+        let none = [0.0f32; SH_COUNT];
+        let coefficients = |occ: &[f32; SH_COUNT], visible: f32| -> Vec<f32> {
+            let share = occluded_share(n, occ, &all, 16, visible);
+            (0..SH_COUNT).map(|i| open[i] + share[i]).collect()
+        };
+        // Every ray occluded, weight 0: zero, whatever the sampling error;
+        // weight 1 (`from_occluded`): the sampling error remains.
+        assert!(coefficients(&all, 0.0).iter().all(|c| c.abs() < 1e-6));
+        let old = from_occluded(n, &all, 16);
+        let blended = coefficients(&all, 1.0);
+        assert!((0..SH_COUNT).all(|i| (old[i] - blended[i]).abs() < 1e-6));
+        // None occluded, weight 1: the open projection exactly.
+        let open_again = coefficients(&none, 1.0);
+        assert!((0..SH_COUNT).all(|i| (open_again[i] - open[i]).abs() < 1e-6));
+        // In between, a linear blend of two estimators of the same value.
+        let half: Vec<f32> = all.iter().map(|a| 0.5 * a).collect();
+        let half: [f32; SH_COUNT] = half.try_into().unwrap();
+        let (a, b, m) = (
+            coefficients(&half, 0.0),
+            coefficients(&half, 1.0),
+            coefficients(&half, 0.25),
+        );
+        assert!((0..SH_COUNT).all(|i| (m[i] - (0.75 * a[i] + 0.25 * b[i])).abs() < 1e-6));
     }
 }

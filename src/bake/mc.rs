@@ -4,8 +4,9 @@
 //! a [`Bake`], estimated with stratified cosine-weighted directions (so
 //! each ray contributes V and V Y_i(w) with equal weight) from each
 //! receiver's own [`ReceiverRays`]; the SH through the open hemisphere's
-//! exact coefficients ([`sh::from_occluded`]), so only occluded rays add
-//! noise.
+//! exact coefficients as a control variate weighted by the visible
+//! fraction ([`sh::occluded_share`]), so open and closed receivers are
+//! exact at any ray count.
 
 use super::{Bake, BakeParams, ReceiverRays};
 use crate::atlas::Receivers;
@@ -58,14 +59,19 @@ pub fn integrate_receiver(
     let sequence = ReceiverRays::new(receivers, r, p.seed);
     let mut visible = 0u32;
     let mut occluded = [0.0f32; SH_COUNT];
+    let mut all = [0.0f32; SH_COUNT];
     for i in 0..rays {
         let dir = sequence.direction(i);
+        sh::accumulate(&mut all, 1.0, dir);
         if tracer.receiver_visible(sequence.origin, sequence.geo_normal, dir, p.max_distance) {
             visible += 1;
         } else {
             sh::accumulate(&mut occluded, 1.0, dir);
         }
     }
-    let sh = sh::from_occluded(receivers.normal[r], &occluded, rays);
-    (visible as f32 / rays.max(1) as f32, sh)
+    let ao = visible as f32 / rays.max(1) as f32;
+    let n = receivers.normal[r];
+    let share = sh::occluded_share(n, &occluded, &all, rays, ao);
+    let open = sh::open_hemisphere(n);
+    (ao, std::array::from_fn(|i| open[i] + share[i]))
 }
