@@ -116,8 +116,8 @@ fn main() {
         let mut acc = [[0.0f64; 6]; 4]; // count, sum e, sum e2, rays, sh l2 e2, abs>0.05
         let mut total = 0.0;
         let mut errs = Vec::new();
-        // Squared SH error per band (L0, L1, L2), summed over texels.
-        let mut bands = [0.0f64; 3];
+        // The texels compared: SH of the run and of the reference.
+        let (mut run_sh, mut kept_ref_sh) = (Vec::new(), Vec::new());
         for i in 0..n {
             if p.inside[i] {
                 continue;
@@ -132,27 +132,22 @@ fn main() {
                 c[4] += ((a - b) as f64).powi(2) / 5.0;
             }
             c[5] += (e.abs() > 0.05) as u8 as f64;
-            for (k, (a, b)) in out.bake.sh[i].iter().zip(&ref_sh[i]).enumerate() {
-                let (band, width) = match k {
-                    0 => (0, 1.0),
-                    1..=3 => (1, 3.0),
-                    _ => (2, 5.0),
-                };
-                bands[band] += ((a - b) as f64).powi(2) / width;
-            }
+            run_sh.push(out.bake.sh[i]);
+            kept_ref_sh.push(ref_sh[i]);
             total += e * e;
             errs.push(e.abs());
         }
         errs.sort_by(|a, b| a.partial_cmp(b).unwrap());
         let m: f64 = acc.iter().map(|c| c[0]).sum();
+        let bands = aobake::report::metrics::sh_band_rmse(&run_sh, &kept_ref_sh);
         println!(
             "{} ({secs:.2} s): AO RMSE {:.5}, p99 {:.5}, SH RMSE L0/L1/L2 {:.5}/{:.5}/{:.5}, rays {:.1}",
             budget.label(),
             (total / m).sqrt(),
             errs[(errs.len() as f64 * 0.99) as usize],
-            (bands[0] / m).sqrt(),
-            (bands[1] / m).sqrt(),
-            (bands[2] / m).sqrt(),
+            bands[0],
+            bands[1],
+            bands[2],
             acc.iter().map(|c| c[3]).sum::<f64>() / m
         );
         for (k, c) in acc.iter().enumerate() {

@@ -54,30 +54,35 @@ pub fn open_hemisphere(n: Vec3) -> [f32; SH_COUNT] {
     std::array::from_fn(|i| CLAMPED_COSINE_BAND[BAND[i]] / std::f32::consts::PI * y[i])
 }
 
-/// Coefficients of a receiver with normal n from `rays` cosine-weighted
-/// rays around n, of which the occluded ones summed `occluded_sum` =
-/// sum Y_i(w): the open hemisphere's exact coefficients less the occluded
-/// rays' share (a control variate: an open receiver is exact at any ray
-/// count, and only the occluded rays carry noise).
-#[inline]
-pub fn from_occluded(n: Vec3, occluded_sum: &[f32; SH_COUNT], rays: u32) -> [f32; SH_COUNT] {
-    let open = open_hemisphere(n);
-    let inv = 1.0 / rays.max(1) as f32;
-    std::array::from_fn(|i| open[i] - occluded_sum[i] * inv)
-}
-
-/// The occluded share (less) of a receiver with normal n, from `rays`
+/// The occluded share (less) of a receiver whose open hemisphere projects
+/// to `open` ([`open_hemisphere`] of its normal n), from `rays`
 /// cosine-weighted rays around n whose occluded ones summed
-/// `occluded_sum` and all of which summed `all_sum`, with the open
-/// hemisphere's exact projection as a control variate of weight
-/// `visible` (the receiver's visible fraction): `from_occluded` less the
-/// open projection at `visible` 1 (exact for an open receiver), the
-/// visible rays' own sum at 0 (exact for a closed one: the occluded
-/// rays' sum then carries the sampling error of the hemisphere, all_sum
-/// less the open projection, which a few rays leave large). Add
-/// [`open_hemisphere`] for the coefficients.
+/// `occluded_sum` and all of which summed `all_sum` (sum Y_i(w)), with the
+/// open projection as a control variate of weight `visible` (the
+/// receiver's visible fraction): at `visible` 1 the occluded rays' share
+/// alone (exact for an open receiver), at 0 the visible rays' own sum less
+/// the open projection (exact for a closed one: the occluded rays' sum
+/// then carries the hemisphere's sampling error, all_sum less the open
+/// projection, which a few rays leave large). Add `open` for the
+/// coefficients ([`from_sums`]).
 #[inline]
 pub fn occluded_share(
+    open: &[f32; SH_COUNT],
+    occluded_sum: &[f32; SH_COUNT],
+    all_sum: &[f32; SH_COUNT],
+    rays: u32,
+    visible: f32,
+) -> [f32; SH_COUNT] {
+    let inv = 1.0 / rays.max(1) as f32;
+    let w = 1.0 - visible.clamp(0.0, 1.0);
+    std::array::from_fn(|i| -occluded_sum[i] * inv + w * (all_sum[i] * inv - open[i]))
+}
+
+/// Coefficients of a receiver with normal n from its rays' sums (see
+/// [`occluded_share`]): the open hemisphere's exact projection plus the
+/// occluded share (less).
+#[inline]
+pub fn from_sums(
     n: Vec3,
     occluded_sum: &[f32; SH_COUNT],
     all_sum: &[f32; SH_COUNT],
@@ -85,9 +90,8 @@ pub fn occluded_share(
     visible: f32,
 ) -> [f32; SH_COUNT] {
     let open = open_hemisphere(n);
-    let inv = 1.0 / rays.max(1) as f32;
-    let w = 1.0 - visible.clamp(0.0, 1.0);
-    std::array::from_fn(|i| -occluded_sum[i] * inv + w * (all_sum[i] * inv - open[i]))
+    let share = occluded_share(&open, occluded_sum, all_sum, rays, visible);
+    std::array::from_fn(|i| open[i] + share[i])
 }
 
 #[cfg(test)]
@@ -153,14 +157,13 @@ mod tests {
         let error: f32 = (0..SH_COUNT).map(|i| (all[i] / 16.0 - open[i]).abs()).sum();
         assert!(error > 1e-3, "the rays' sum should differ: {error}");
         let none = [0.0f32; SH_COUNT];
-        let coefficients = |occ: &[f32; SH_COUNT], visible: f32| -> Vec<f32> {
-            let share = occluded_share(n, occ, &all, 16, visible);
-            (0..SH_COUNT).map(|i| open[i] + share[i]).collect()
-        };
+        let coefficients =
+            |occ: &[f32; SH_COUNT], visible: f32| from_sums(n, occ, &all, 16, visible);
         // Every ray occluded, weight 0: zero, whatever the sampling error;
-        // weight 1 (`from_occluded`): the sampling error remains.
+        // weight 1 (the open projection less the occluded rays' mean): the
+        // sampling error remains.
         assert!(coefficients(&all, 0.0).iter().all(|c| c.abs() < 1e-6));
-        let old = from_occluded(n, &all, 16);
+        let old: Vec<f32> = (0..SH_COUNT).map(|i| open[i] - all[i] / 16.0).collect();
         let blended = coefficients(&all, 1.0);
         assert!((0..SH_COUNT).all(|i| (old[i] - blended[i]).abs() < 1e-6));
         // None occluded, weight 1: the open projection exactly.

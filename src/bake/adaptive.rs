@@ -242,7 +242,7 @@ impl AdaptiveStats {
 #[derive(Clone, Copy, Debug, Default)]
 struct CellSums {
     visible: u32,
-    /// Sum of Y_i over the occluded rays ([`sh::from_occluded`]).
+    /// Sum of Y_i over the occluded rays ([`sh::occluded_share`]).
     sh: [f32; SH_COUNT],
     /// Sum of Y_i over all rays ([`sh::occluded_share`]).
     all: [f32; SH_COUNT],
@@ -664,20 +664,16 @@ pub fn bake(
                 let inv = 1.0 / rays[r] as f32;
                 let mut v = [0.0f32; 10];
                 v[0] = s.visible as f32 * inv;
-                if cells == 1 {
-                    // The open projection as a control variate weighted by
-                    // the visible fraction: a mostly closed receiver (few
-                    // rays, low visibility spread) would otherwise keep its
-                    // few rays' hemisphere sampling error.
-                    let share =
-                        sh::occluded_share(receivers.normal[r], &s.sh, &s.all, rays[r], v[0]);
-                    v[1..].copy_from_slice(&share);
-                } else {
-                    // A cell's share of the open projection is not known.
-                    for (v, y) in v[1..].iter_mut().zip(s.sh) {
-                        *v = -y * inv;
-                    }
-                }
+                // The open projection as a control variate weighted by the
+                // visible fraction: a mostly closed receiver (few rays, low
+                // visibility spread) would otherwise keep its few rays'
+                // hemisphere sampling error. A cell's share of the open
+                // projection is not known: weight 1, the occluded rays'
+                // share alone.
+                let visible = if cells == 1 { v[0] } else { 1.0 };
+                let open = sh::open_hemisphere(receivers.normal[r]);
+                let share = sh::occluded_share(&open, &s.sh, &s.all, rays[r], visible);
+                v[1..].copy_from_slice(&share);
                 v
             })
             .collect();
@@ -710,7 +706,7 @@ pub fn bake(
     drop(sums);
     drop(grid);
     // The open hemisphere's exact projection for the receiver's own normal
-    // (sh::from_occluded), added after the filter: filtering it with the
+    // (sh::open_hemisphere), added after the filter: filtering it with the
     // occluded share mixed the neighbours' normals into the L1 band on
     // curved surfaces (Sponza 1024, quality 256: L1 RMSE 0.0026 against
     // 256-ray Monte Carlo's 0.0019, and 0.0023 still at quality 512).

@@ -5,7 +5,7 @@
 //! each ray contributes V and V Y_i(w) with equal weight) from each
 //! receiver's own [`ReceiverRays`]; the SH through the open hemisphere's
 //! exact coefficients as a control variate weighted by the visible
-//! fraction ([`sh::occluded_share`]), so open and closed receivers are
+//! fraction ([`sh::from_sums`]), so open and closed receivers are
 //! exact at any ray count.
 
 use super::{Bake, BakeParams, ReceiverRays};
@@ -70,8 +70,8 @@ pub fn integrate_receiver(
         }
     }
     let ao = visible as f32 / rays.max(1) as f32;
-    let n = receivers.normal[r];
-    let share = sh::occluded_share(n, &occluded, &all, rays, ao);
-    let open = sh::open_hemisphere(n);
-    (ao, std::array::from_fn(|i| open[i] + share[i]))
+    (
+        ao,
+        sh::from_sums(receivers.normal[r], &occluded, &all, rays, ao),
+    )
 }
