@@ -223,13 +223,9 @@ fn curtains_keep_their_contact_against_monte_carlo() {
     // The thin cloth curtains (shared assets; skipped without them): mean
     // AO bias of the contact texels (not filtered) and of all, against
     // 128-ray Monte Carlo (its noise averages out of a mean bias).
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/assets/thin_cloth_curtains_intel_sponza.glb");
-    if !path.exists() {
-        eprintln!("skipped: {} is missing", path.display());
+    let Some(sc) = shared_scene("thin_cloth_curtains_intel_sponza.glb") else {
         return;
-    }
-    let sc = aobake::gltf::load(&path).unwrap();
+    };
     // 12072 charts: one page at 512 texels needs no padding.
     let reference = bake_raw(
         &sc,

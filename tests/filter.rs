@@ -123,13 +123,9 @@ fn no_leak_across_a_thin_wall() {
 
 #[test]
 fn curtains_match_brute_force() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/assets/thin_cloth_curtains_intel_sponza.glb");
-    if !path.exists() {
-        eprintln!("note: {} not found, test skipped", path.display());
+    let Some(sc) = shared_scene("thin_cloth_curtains_intel_sponza.glb") else {
         return;
-    }
-    let sc = aobake::gltf::load(&path).unwrap();
+    };
     let mc = aobake::bake_scene(&sc, &settings(1024, 64, None)).unwrap();
     let f = aobake::bake_scene(&sc, &filtered(1024, None)).unwrap();
     let e = aobake::report::metrics::error_stats(&f.bake.ao, &mc.bake.ao);

@@ -237,3 +237,17 @@ pub fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::Settings) -> aobake::pi
     s.fill_inside = false;
     aobake::bake_scene(sc, &s).unwrap()
 }
+
+/// The scene `name` of the shared test assets (`../shared/assets`), or
+/// None (with a note) where they are not checked out: the test skips.
+#[allow(dead_code)]
+pub fn shared_scene(name: &str) -> Option<aobake::gltf::Scene> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/assets")
+        .join(name);
+    if !path.exists() {
+        eprintln!("skipped: {} is missing", path.display());
+        return None;
+    }
+    Some(aobake::gltf::load(&path).unwrap())
+}
