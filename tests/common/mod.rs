@@ -240,7 +240,6 @@ pub fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::Settings) -> aobake::pi
 
 /// The scene `name` of the shared test assets (`../shared/assets`), or
 /// None (with a note) where they are not checked out: the test skips.
-#[allow(dead_code)]
 pub fn shared_scene(name: &str) -> Option<aobake::gltf::Scene> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/assets")
