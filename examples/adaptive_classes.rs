@@ -83,6 +83,9 @@ fn main() {
         if let Ok(v) = std::env::var("AOBAKE_PRE") {
             s.adaptive.pre_rays = v.parse().unwrap();
         }
+        if let Ok(v) = std::env::var("AOBAKE_CROSS") {
+            s.adaptive.cross_charts = v != "0";
+        }
         if let Ok(v) = std::env::var("AOBAKE_CELLS") {
             s.adaptive.cells = v.parse().unwrap();
         }
@@ -136,6 +139,36 @@ fn main() {
             kept_ref_sh.push(ref_sh[i]);
             total += e * e;
             errs.push(e.abs());
+        }
+        // AOBAKE_WORST=N: the N texels with the largest AO error.
+        if let Some(k) = std::env::var("AOBAKE_WORST")
+            .ok()
+            .and_then(|v| v.parse().ok())
+        {
+            let mut order: Vec<usize> = (0..n).filter(|&i| !p.inside[i]).collect();
+            let err = |i: usize| (out.bake.ao[i] - ref_ao[i]).abs();
+            order.sort_by(|&a, &b| err(b).total_cmp(&err(a)));
+            let rc = &p.receivers;
+            for &i in order.iter().take(k) {
+                let t = rc.texel[i];
+                let (z, sg) = out
+                    .adaptive_stats
+                    .as_ref()
+                    .map_or((0.0, 0.0), |st| (st.z_min[i], st.sigma_texels[i]));
+                println!(
+                    "  texel ({},{}) ao {:.3} ref {:.3} rays {} z_min {:.4} sigma {:.2} fp {:.4} p {:.3} n {:.2}",
+                    t % rc.width,
+                    t / rc.width,
+                    out.bake.ao[i],
+                    ref_ao[i],
+                    rays[i],
+                    z,
+                    sg,
+                    rc.footprint[i],
+                    rc.position[i],
+                    rc.normal[i]
+                );
+            }
         }
         errs.sort_by(|a, b| a.partial_cmp(b).unwrap());
         let m: f64 = acc.iter().map(|c| c[0]).sum();

@@ -142,6 +142,9 @@ struct Cli {
     /// Adaptive, expert: hemisphere cells with bounds and a filter of their own (1 or 4).
     #[arg(long, default_value_t = DEFAULTS.adaptive.cells)]
     cells: u32,
+    /// Adaptive, expert: texels whose filter reaches a chart border gather neighbours in world space, across charts (measured worse on Sponza; off by default).
+    #[arg(long)]
+    cross_charts: bool,
     /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.
     #[arg(long)]
     debug_dir: Option<PathBuf>,
@@ -352,6 +355,7 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             quality: cli.quality,
             mean_rays: cli.mean_rays.unwrap_or(0),
             cells: cli.cells,
+            cross_charts: cli.cross_charts || DEFAULTS.adaptive.cross_charts,
             ..DEFAULTS.adaptive
         },
         debug_dir: cli.debug_dir.clone(),

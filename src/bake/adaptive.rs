@@ -46,6 +46,10 @@
 //!    texels' 0.0028 -> 0.0025; Sponza 1024 L2 0.00196, equal to 256-ray
 //!    Monte Carlo's.
 //!
+//! Expert: `cross_charts` lets a receiver whose filter reaches a chart
+//! border gather in world space across charts ([`World`]); measured worse
+//! than the grid filter on Sponza (see [`AdaptiveOptions::cross_charts`]).
+//!
 //! Expert: `cells` 4 gives each 2x2 quadrant of the hemisphere its own
 //! z_min, spread, N_eff and filter (the per-cell variant); measured
 //! worse than one cell per receiver on Sponza (see [`CELL_AGREEMENT`]).
@@ -59,6 +63,7 @@ use crate::sh::{self, SH_COUNT};
 use crate::stage::StageTimer;
 use crate::trace::Tracer;
 use glam::{Vec2, Vec3};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 /// Options of the adaptive method.
@@ -85,6 +90,15 @@ pub struct AdaptiveOptions {
     /// whole hemisphere per receiver) or 4 (the 2x2 quadrants of the
     /// receiver's sample square, azimuthal quadrants of its frame).
     pub cells: u32,
+    /// Expert: receivers whose filter reaches a chart border gather their
+    /// neighbours in world space, across charts and UV seams (one cell
+    /// only). Off by default: measured worse on Sponza 1024 (quality 256,
+    /// 2048-ray reference): AO RMSE 0.0062 -> 0.0067, p99 0.0205 ->
+    /// 0.0234, SH L1 0.00189 -> 0.00213, for 2% fewer rays. The worst texels
+    /// (AO 0.09-0.11 off) lie on one-texel-wide chart strips, whose every
+    /// texel gathers in world space, and beside receivers whose shading
+    /// normals leave part of the hemisphere below their geometric plane.
+    pub cross_charts: bool,
 }
 
 impl Default for AdaptiveOptions {
@@ -98,6 +112,7 @@ impl Default for AdaptiveOptions {
             mu: 0.7,
             max_reach: 4,
             cells: 1,
+            cross_charts: false,
         }
     }
 }
@@ -174,13 +189,20 @@ impl AdaptiveOptions {
     /// counts: about 64 B). The filter's row pass: ray counts (4 B), z_min
     /// and sigma (8 B per cell), the texel map (4 B), the filter's input
     /// (AO and SH: 40 B) and its row pass (44 B); with more than one cell
-    /// the cells' running sums are held through it.
+    /// the cells' running sums are held through it. With `cross_charts`,
+    /// the k-d tree of the positions (about 20 B: point, index and its
+    /// share of the nodes) through both, and own z_min through the filter.
     pub fn bytes_per_texel(&self) -> u64 {
         let cells = self.cells as u64;
         let sums = 76 * cells;
-        let bounds = sums + 4 * cells + 4 + 64;
+        let world = if self.cross_charts && cells == 1 {
+            20
+        } else {
+            0
+        };
+        let bounds = sums + 4 * cells + 4 + 64 + world;
         let held = if cells > 1 { sums } else { 0 };
-        let filter = 4 + 8 * cells + 4 + 40 + 44 + held;
+        let filter = 4 + 8 * cells + 4 + 40 + 44 + held + world + world / 5;
         bounds.max(filter)
     }
 
@@ -480,6 +502,12 @@ pub fn bake(
             }
         });
     timer.lap("pre-pass");
+    // The world-space neighbourhood across chart borders (one cell: a
+    // receiver's own z_min is its cell's). Without a tree (it cannot be
+    // built), the filter stays on the atlas grid.
+    let tree = (cells == 1 && o.cross_charts && o.max_reach > 0)
+        .then(|| position_tree(receivers).ok())
+        .flatten();
 
     // 2. Bounds, per cell.
     let grid = TexelGrid::new(receivers);
@@ -539,6 +567,7 @@ pub fn bake(
                 cells,
                 sigma_texels: &sigma,
                 z_min: &z_filter,
+                world: World::of(tree.as_ref(), &own_z),
             }
             .effective_neighbours();
             // A cell whose neighbourhood saw nothing: the variance that
@@ -619,7 +648,8 @@ pub fn bake(
         let target = allocate_variances(&filtered, &unfiltered, o);
         (z_min, sigma_texels, target)
     };
-    drop(own_z);
+    // Kept for the world-space filter only.
+    let own_z = if tree.is_some() { own_z } else { Vec::new() };
     timer.lap("bounds");
 
     // The second batch: the sequence continued to each receiver's count.
@@ -687,6 +717,7 @@ pub fn bake(
             cells,
             sigma_texels: &sigma_texels[cell],
             z_min: &z_min[cell],
+            world: World::of(tree.as_ref(), &own_z),
         }
         .filter(values);
         if cell == 0 {
@@ -988,9 +1019,133 @@ struct FilterSupport<'a> {
     cells: usize,
     sigma_texels: &'a [f32],
     z_min: &'a [f32],
+    /// Across chart borders: receivers whose filter reaches a missing
+    /// texel gather their neighbours in world space instead ([`World`]).
+    world: Option<World<'a>>,
+}
+
+/// The world-space neighbourhood of the filter across chart borders: the
+/// k-d tree of the receivers' positions and each receiver's own z_min (of
+/// its pre-pass, before spreading), which decides whether it may lend.
+#[derive(Clone, Copy)]
+struct World<'a> {
+    tree: &'a ImmutableKdTree<f32, 3>,
+    own_z: &'a [f32],
+}
+
+impl<'a> World<'a> {
+    fn of(tree: Option<&'a ImmutableKdTree<f32, 3>>, own_z: &'a [f32]) -> Option<World<'a>> {
+        tree.map(|tree| World { tree, own_z })
+    }
+}
+
+thread_local! {
+    /// A worker's lenders of one world-space gather: receiver and offset in
+    /// the tangent plane.
+    static WORLD_LENDERS: std::cell::RefCell<Vec<(u32, Vec2)>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// How far, in texels, from a world-space lender's mirror image through
+/// the receiver another lender must lie for both to count: half a texel's
+/// diagonal, the most two charts' texel lattices are offset by.
+pub const MIRROR_TOLERANCE: f32 = 0.75;
+
+/// The k-d tree of the receivers' positions.
+fn position_tree(receivers: &Receivers) -> Result<ImmutableKdTree<f32, 3>> {
+    let points: Vec<[f32; 3]> = receivers.position.iter().map(|p| p.to_array()).collect();
+    ImmutableKdTree::<f32, 3>::new_from_slice_parallel(&points)
+        .map_err(|e| Error::Limit(format!("cannot build the receivers' k-d tree: {e}")))
 }
 
 impl FilterSupport<'_> {
+    /// The reach in texels of receiver `r`'s filter, if it is filtered.
+    #[inline]
+    fn reach(&self, r: usize) -> Option<usize> {
+        let sigma = self.sigma_texels[r];
+        (sigma > 0.0).then(|| ((2.0 * sigma).ceil() as usize).min(MAX_REACH as usize))
+    }
+
+    /// Whether receiver `r`'s filter gathers in world space: it is
+    /// filtered, a world neighbourhood is given and a texel within its
+    /// reach along its row or column has no receiver (a chart border,
+    /// where the atlas grid stops and the surface may go on in another
+    /// chart).
+    #[inline]
+    fn crosses_border(&self, r: usize) -> bool {
+        let (Some(reach), Some(_)) = (self.reach(r), self.world) else {
+            return false;
+        };
+        (1..=reach as isize).any(|k| {
+            [(-k, false), (k, false), (-k, true), (k, true)]
+                .iter()
+                .any(|&(k, v)| self.grid.offset(self.receivers, r, k, v).is_none())
+        })
+    }
+
+    /// Calls `f(j, w)` for each receiver j that lends to receiver `r`
+    /// (which [`Self::crosses_border`]) in world space, on any chart: within
+    /// its reach (times its footprint) and z_min, not inside geometry,
+    /// through the leak rule, with an own z_min not below r's (the widest
+    /// filter's rule, [`widest_filters`], which the atlas-grid spread
+    /// cannot check beyond the chart); w the Gaussian of the offset in r's
+    /// tangent plane. r itself comes with w = 1.
+    ///
+    /// Symmetric, as the grid filter's runs are: a lender counts only when
+    /// another lender lies within [`MIRROR_TOLERANCE`] texels of its mirror
+    /// image through r, so where the surface ends (a mesh edge, a rejected
+    /// crease) the weights stay centred on r and a gradient is not shifted.
+    #[inline]
+    fn for_each_world_weight(&self, r: usize, mut f: impl FnMut(usize, f32)) {
+        let (Some(reach), Some(world)) = (self.reach(r), self.world) else {
+            return;
+        };
+        let rc = self.receivers;
+        let fp = rc.footprint[r];
+        let sigma_world = self.sigma_texels[r] * fp;
+        let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
+        let radius = reach as f32 * fp;
+        let (pr, n, geo, z) = (
+            rc.position[r],
+            rc.normal[r],
+            rc.geo_normal[r],
+            self.z_min[r],
+        );
+        let frame = Frame::from_normal(geo);
+        let tolerance2 = (MIRROR_TOLERANCE * fp).powi(2);
+        f(r, 1.0);
+        WORLD_LENDERS.with_borrow_mut(|lenders| {
+            lenders.clear();
+            world
+                .tree
+                .query(&pr.to_array())
+                .within::<SquaredEuclidean<f32>>(radius * radius)
+                .unsorted()
+                .visit(|it| {
+                    let j = it.item as usize;
+                    let rel = rc.position[j] - pr;
+                    if j == r
+                        || self.inside[j]
+                        || world.own_z[j] < z
+                        || rel.length() > z
+                        || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], fp)
+                    {
+                        return;
+                    }
+                    let t = Vec2::new(rel.dot(frame.tangent), rel.dot(frame.bitangent));
+                    lenders.push((j as u32, t));
+                });
+            for &(j, t) in lenders.iter() {
+                if lenders
+                    .iter()
+                    .any(|&(_, m)| (m + t).length_squared() <= tolerance2)
+                {
+                    f(j as usize, (-t.length_squared() * inv2s2).exp());
+                }
+            }
+        });
+    }
+
     /// Calls `f(j, w)` for each receiver j that lends to receiver `r` along
     /// its row (`vertical` false) or column, with its Gaussian weight w on
     /// the offset in r's tangent plane; r itself has w = 1. A side's run
@@ -999,15 +1154,13 @@ impl FilterSupport<'_> {
     /// shorter run's length. Nothing for an unfiltered receiver.
     #[inline]
     fn for_each_weight(&self, r: usize, vertical: bool, mut f: impl FnMut(usize, f32)) {
-        let sigma = self.sigma_texels[r];
-        if sigma <= 0.0 {
+        let Some(reach) = self.reach(r) else {
             return;
-        }
+        };
         let rc = self.receivers;
         let fp = rc.footprint[r];
-        let sigma_world = sigma * fp;
+        let sigma_world = self.sigma_texels[r] * fp;
         let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
-        let reach = ((2.0 * sigma).ceil() as usize).min(MAX_REACH as usize);
         let (pr, n, geo) = (rc.position[r], rc.normal[r], rc.geo_normal[r]);
         let tangent = cell_tangent(self.cells, n);
         // Each side's run of lending receivers, outward from r, up to the
@@ -1067,10 +1220,17 @@ impl FilterSupport<'_> {
             .with_min_len(256)
             .map(|r| {
                 let (mut num, mut den) = (0.0f32, 0.0f32);
-                self.for_each_weight(r, true, |j, c| {
-                    num += c * rows[j].0;
-                    den += c * c * rows[j].1;
-                });
+                if self.crosses_border(r) {
+                    self.for_each_world_weight(r, |_, w| {
+                        num += w;
+                        den += w * w;
+                    });
+                } else {
+                    self.for_each_weight(r, true, |j, c| {
+                        num += c * rows[j].0;
+                        den += c * c * rows[j].1;
+                    });
+                }
                 if den > 0.0 {
                     (num * num / den).max(1.0)
                 } else {
@@ -1119,10 +1279,39 @@ impl FilterSupport<'_> {
     fn filter(&self, values: Vec<[f32; 10]>) -> (Vec<f32>, Vec<[f32; SH_COUNT]>) {
         let (row_values, row_weights): (Vec<[f32; 10]>, Vec<f32>) =
             self.pass(&values, None, false).unzip();
-        drop(values);
+        // Kept for the receivers that gather in world space.
+        let values = self.world.map(|_| values);
         self.pass(&row_values, Some(&row_weights), true)
-            .map(|(v, _)| (v[0], std::array::from_fn(|i| v[1 + i])))
+            .enumerate()
+            .map(|(r, (v, _))| {
+                let v = if let Some(values) = &values
+                    && self.crosses_border(r)
+                {
+                    self.world_value(values, r)
+                } else {
+                    v
+                };
+                (v[0], std::array::from_fn(|i| v[1 + i]))
+            })
             .unzip()
+    }
+
+    /// Receiver `r`'s filtered values from its world-space neighbours
+    /// ([`Self::for_each_world_weight`]).
+    fn world_value(&self, values: &[[f32; 10]], r: usize) -> [f32; 10] {
+        let mut acc = [0.0f32; 10];
+        let mut wsum = 0.0f32;
+        self.for_each_world_weight(r, |j, w| {
+            for (a, v) in acc.iter_mut().zip(values[j]) {
+                *a += w * v;
+            }
+            wsum += w;
+        });
+        if wsum > 0.0 {
+            acc.map(|a| a / wsum)
+        } else {
+            values[r]
+        }
     }
 }
 
@@ -1231,6 +1420,7 @@ mod tests {
                 cells: 1,
                 sigma_texels: &sigmas,
                 z_min: &z_min,
+                world: None,
             };
             let ours = support.effective_neighbours();
             let reach = (2.0 * sigma).ceil() as i32;
@@ -1344,6 +1534,7 @@ mod tests {
             cells: 1,
             sigma_texels: &sigmas,
             z_min: &z_min,
+            world: None,
         };
         let ramp = |r: usize| 0.1 + 0.1 * rc.position[r].x;
         let values: Vec<[f32; 10]> = (0..n).map(|r| [ramp(r); 10]).collect();
@@ -1357,6 +1548,113 @@ mod tests {
             );
             assert!((sh[r][8] - ramp(r)).abs() < 1e-5);
         }
+    }
+
+    /// One plane, x in 0..12 and y in 0..8 world texels, in two charts: x
+    /// < 6 at atlas columns 0..6 and x >= 6 at atlas columns 9..15 (a gap
+    /// of 3 texels between them).
+    fn plane_in_two_charts() -> Receivers {
+        let (w, h) = (16u32, 8u32);
+        let mut rc = Receivers {
+            width: w,
+            height: h,
+            ..Default::default()
+        };
+        for y in 0..h {
+            for x in 0..12u32 {
+                let ax = if x < 6 { x } else { x + 3 };
+                rc.texel.push(y * w + ax);
+                rc.position.push(Vec3::new(x as f32, y as f32, 0.0));
+                rc.normal.push(Vec3::Z);
+                rc.geo_normal.push(Vec3::Z);
+                rc.footprint.push(1.0);
+            }
+        }
+        rc
+    }
+
+    #[test]
+    fn the_world_filter_crosses_a_chart_border_and_keeps_a_ramp() {
+        // A ramp along x over one plane cut into two charts: beside the cut,
+        // the grid filter keeps only the shorter side's run (nothing, at the
+        // border column), while the world-space gather reads the other chart
+        // and averages as many receivers as in the plane's interior; the
+        // ramp stays exact (mirrored lenders keep the weights centred, also
+        // at the plane's own edges).
+        let rc = plane_in_two_charts();
+        let grid = TexelGrid::new(&rc);
+        let n = rc.len();
+        let inside = vec![false; n];
+        let sigmas = vec![1.0f32; n];
+        let z_min = vec![f32::INFINITY; n];
+        let own_z = vec![f32::INFINITY; n];
+        let tree = position_tree(&rc).unwrap();
+        let grid_only = FilterSupport {
+            receivers: &rc,
+            grid: &grid,
+            inside: &inside,
+            cells: 1,
+            sigma_texels: &sigmas,
+            z_min: &z_min,
+            world: None,
+        };
+        let world = FilterSupport {
+            world: World::of(Some(&tree), &own_z),
+            ..grid_only
+        };
+        let at = |x: f32, y: f32| {
+            (0..n)
+                .find(|&r| rc.position[r] == Vec3::new(x, y, 0.0))
+                .unwrap()
+        };
+        let (border, interior) = (at(5.0, 4.0), at(8.0, 4.0));
+        assert!(world.crosses_border(border) && !world.crosses_border(interior));
+        let (g, w) = (
+            grid_only.effective_neighbours(),
+            world.effective_neighbours(),
+        );
+        // The disc of radius 2 sigma around the border receiver: 13
+        // receivers (every offset with x^2 + y^2 <= 4) at the Gaussian's
+        // weights.
+        let (mut s1, mut s2) = (0.0f32, 0.0f32);
+        for y in -2i32..=2 {
+            for x in -2i32..=2 {
+                if x * x + y * y <= 4 {
+                    let v = (-((x * x + y * y) as f32) / 2.0).exp();
+                    s1 += v;
+                    s2 += v * v;
+                }
+            }
+        }
+        assert!((w[border] - s1 * s1 / s2).abs() < 1e-4, "{}", w[border]);
+        // The grid filter: the column alone (3.5 receivers).
+        assert!(g[border] < 3.6 && w[border] > 2.5 * g[border]);
+        let ramp = |r: usize| 0.1 + 0.05 * rc.position[r].x + 0.02 * rc.position[r].y;
+        let values: Vec<[f32; 10]> = (0..n).map(|r| [ramp(r); 10]).collect();
+        let (ao, sh) = world.filter(values.clone());
+        for r in 0..n {
+            assert!(
+                (ao[r] - ramp(r)).abs() < 1e-5,
+                "{}: {}",
+                rc.position[r],
+                ao[r]
+            );
+            assert!((sh[r][4] - ramp(r)).abs() < 1e-5);
+        }
+        // A receiver that saw a nearer occluder than the border receiver's
+        // filter allows does not lend to it across the border.
+        let mut own_z = own_z.clone();
+        let near = at(6.0, 4.0);
+        own_z[near] = 3.0;
+        let z_min = vec![10.0f32; n];
+        let strict = FilterSupport {
+            z_min: &z_min,
+            world: World::of(Some(&tree), &own_z),
+            ..world
+        };
+        let mut read = Vec::new();
+        strict.for_each_world_weight(border, |j, _| read.push(j));
+        assert!(!read.contains(&near) && read.contains(&at(5.0, 3.0)));
     }
 
     #[test]
@@ -1375,6 +1673,7 @@ mod tests {
             cells: 1,
             sigma_texels: &sigmas,
             z_min: &z_min,
+            world: None,
         };
         let (ao, sh) = support.filter(vec![[0.25f32; 10]; n]);
         assert!(
