@@ -94,10 +94,10 @@ pub struct AdaptiveOptions {
     /// neighbours in world space, across charts and UV seams (one cell
     /// only). Off by default: measured worse on Sponza 1024 (quality 256,
     /// 2048-ray reference): AO RMSE 0.0062 -> 0.0067, p99 0.0205 ->
-    /// 0.0234, SH L1 0.00189 -> 0.00213, for 2% fewer rays. The worst texels
-    /// (AO 0.09-0.11 off) lie on one-texel-wide chart strips, whose every
-    /// texel gathers in world space, and beside receivers whose shading
-    /// normals leave part of the hemisphere below their geometric plane.
+    /// 0.0234, SH L1 0.00189 -> 0.00213, for 2% fewer rays (passes 11.07 s
+    /// -> 10.63 s). The worst texels (AO 0.09-0.11 off, filtered at sigma
+    /// 0.5-2) lie in runs along chart borders (`adaptive_classes` with
+    /// AOBAKE_WORST); which lenders darken them is not isolated yet.
     pub cross_charts: bool,
 }
 
