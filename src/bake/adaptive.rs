@@ -1596,17 +1596,18 @@ mod tests {
             z_min: &z_min,
             world: None,
         };
-        let ramp = |r: usize| 0.1 + 0.1 * rc.position[r].x;
-        let values: Vec<[f32; 10]> = (0..n).map(|r| [ramp(r); 10]).collect();
+        assert_filter_keeps(&support, |p| 0.1 + 0.1 * p.x);
+    }
+
+    /// `support`'s filter keeps a linear function of position exactly (to
+    /// rounding), in the AO and every SH value.
+    fn assert_filter_keeps(support: &FilterSupport, f: impl Fn(Vec3) -> f32) {
+        let rc = support.receivers;
+        let values: Vec<[f32; 10]> = rc.position.iter().map(|&p| [f(p); 10]).collect();
         let (ao, sh) = support.filter(values);
-        for r in 0..n {
-            assert!(
-                (ao[r] - ramp(r)).abs() < 1e-5,
-                "texel {}: {}",
-                rc.texel[r],
-                ao[r]
-            );
-            assert!((sh[r][8] - ramp(r)).abs() < 1e-5);
+        for (r, &p) in rc.position.iter().enumerate() {
+            assert!((ao[r] - f(p)).abs() < 1e-5, "{p}: {}", ao[r]);
+            assert!(sh[r].iter().all(|&v| (v - f(p)).abs() < 1e-5), "{p}");
         }
     }
 
@@ -1689,18 +1690,7 @@ mod tests {
         assert!((w[border] - s1 * s1 / s2).abs() < 1e-4, "{}", w[border]);
         // The grid filter: the column alone (3.5 receivers).
         assert!(g[border] < 3.6 && w[border] > 2.5 * g[border]);
-        let ramp = |r: usize| 0.1 + 0.05 * rc.position[r].x + 0.02 * rc.position[r].y;
-        let values: Vec<[f32; 10]> = (0..n).map(|r| [ramp(r); 10]).collect();
-        let (ao, sh) = world.filter(values.clone());
-        for r in 0..n {
-            assert!(
-                (ao[r] - ramp(r)).abs() < 1e-5,
-                "{}: {}",
-                rc.position[r],
-                ao[r]
-            );
-            assert!((sh[r][4] - ramp(r)).abs() < 1e-5);
-        }
+        assert_filter_keeps(&world, |p| 0.1 + 0.05 * p.x + 0.02 * p.y);
         // A receiver that saw a nearer occluder than the border receiver's
         // filter allows does not lend to it across the border.
         let mut own_z = own_z.clone();
