@@ -1460,6 +1460,40 @@ mod tests {
         }
     }
 
+    /// The grid filter's inputs over some receivers: nothing inside, one
+    /// cell, the same sigma and z_min everywhere.
+    struct Uniform {
+        grid: TexelGrid,
+        inside: Vec<bool>,
+        sigma_texels: Vec<f32>,
+        z_min: Vec<f32>,
+    }
+
+    impl Uniform {
+        fn new(rc: &Receivers, sigma: f32, z_min: f32) -> Uniform {
+            let n = rc.len();
+            Uniform {
+                grid: TexelGrid::new(rc),
+                inside: vec![false; n],
+                sigma_texels: vec![sigma; n],
+                z_min: vec![z_min; n],
+            }
+        }
+
+        /// The atlas-grid filter over `rc` (no world-space gather).
+        fn support<'a>(&'a self, rc: &'a Receivers) -> FilterSupport<'a> {
+            FilterSupport {
+                receivers: rc,
+                grid: &self.grid,
+                inside: &self.inside,
+                cells: 1,
+                sigma_texels: &self.sigma_texels,
+                z_min: &self.z_min,
+                world: None,
+            }
+        }
+    }
+
     #[test]
     fn effective_neighbours_of_the_separable_filter_on_a_plane() {
         // Against the direct sum (sum w)^2 / sum w^2 of a Gaussian over the
@@ -1467,21 +1501,10 @@ mod tests {
         // support; at a corner, a quarter of it.
         let side = 21u32;
         let rc = flat_grid(side);
-        let grid = TexelGrid::new(&rc);
         let n = rc.len();
-        let inside = vec![false; n];
         for sigma in [0.75f32, 1.0, 2.0] {
-            let sigmas = vec![sigma; n];
-            let z_min = vec![f32::INFINITY; n];
-            let support = FilterSupport {
-                receivers: &rc,
-                grid: &grid,
-                inside: &inside,
-                cells: 1,
-                sigma_texels: &sigmas,
-                z_min: &z_min,
-                world: None,
-            };
+            let uniform = Uniform::new(&rc, sigma, f32::INFINITY);
+            let support = uniform.support(&rc);
             let ours = support.effective_neighbours();
             let reach = (2.0 * sigma).ceil() as i32;
             let direct = |xs: std::ops::RangeInclusive<i32>| {
@@ -1582,21 +1605,8 @@ mod tests {
             footprint: keep.iter().map(|&t| full.footprint[t]).collect(),
             ..full
         };
-        let grid = TexelGrid::new(&rc);
-        let n = rc.len();
-        let inside = vec![false; n];
-        let sigmas = vec![2.0f32; n];
-        let z_min = vec![f32::INFINITY; n];
-        let support = FilterSupport {
-            receivers: &rc,
-            grid: &grid,
-            inside: &inside,
-            cells: 1,
-            sigma_texels: &sigmas,
-            z_min: &z_min,
-            world: None,
-        };
-        assert_filter_keeps(&support, |p| 0.1 + 0.1 * p.x);
+        let uniform = Uniform::new(&rc, 2.0, f32::INFINITY);
+        assert_filter_keeps(&uniform.support(&rc), |p| 0.1 + 0.1 * p.x);
     }
 
     /// `support`'s filter keeps a linear function of position exactly (to
@@ -1643,22 +1653,11 @@ mod tests {
         // ramp stays exact (mirrored lenders keep the weights centred, also
         // at the plane's own edges).
         let rc = plane_in_two_charts();
-        let grid = TexelGrid::new(&rc);
         let n = rc.len();
-        let inside = vec![false; n];
-        let sigmas = vec![1.0f32; n];
-        let z_min = vec![f32::INFINITY; n];
         let own_z = vec![f32::INFINITY; n];
         let tree = position_tree(&rc).unwrap();
-        let grid_only = FilterSupport {
-            receivers: &rc,
-            grid: &grid,
-            inside: &inside,
-            cells: 1,
-            sigma_texels: &sigmas,
-            z_min: &z_min,
-            world: None,
-        };
+        let uniform = Uniform::new(&rc, 1.0, f32::INFINITY);
+        let grid_only = uniform.support(&rc);
         let world = FilterSupport {
             world: World::of(Some(&tree), &own_z),
             ..grid_only
@@ -1725,20 +1724,9 @@ mod tests {
     fn the_filter_keeps_a_constant_and_does_not_cross_z_min() {
         // A constant is kept exactly; a neighbour beyond z_min is not read.
         let rc = flat_grid(9);
-        let grid = TexelGrid::new(&rc);
         let n = rc.len();
-        let inside = vec![false; n];
-        let sigmas = vec![2.0f32; n];
-        let z_min = vec![1.5f32; n];
-        let support = FilterSupport {
-            receivers: &rc,
-            grid: &grid,
-            inside: &inside,
-            cells: 1,
-            sigma_texels: &sigmas,
-            z_min: &z_min,
-            world: None,
-        };
+        let uniform = Uniform::new(&rc, 2.0, 1.5);
+        let support = uniform.support(&rc);
         let (ao, sh) = support.filter(vec![[0.25f32; 10]; n]);
         assert!(
             ao.iter()
