@@ -1280,75 +1280,70 @@ impl FilterSupport<'_> {
     /// One pass of the separable filter over `src` (rows, or columns
     /// when `vertical`), each value weighted by `src_w` (the row pass's
     /// weight sums) if given: per receiver its filtered values and their
-    /// weight sum; unfiltered receivers keep their own.
+    /// weight sum; unfiltered receivers keep their own. With `world`
+    /// given (the unfiltered values), receivers that [`Self::crosses_border`]
+    /// take their world-space average instead.
     fn pass<'s>(
         &'s self,
         src: &'s [[f32; 10]],
         src_w: Option<&'s [f32]>,
         vertical: bool,
+        world: Option<&'s [[f32; 10]]>,
     ) -> impl IndexedParallelIterator<Item = ([f32; 10], f32)> + 's {
         (0..self.receivers.len())
             .into_par_iter()
             .with_min_len(256)
             .map(move |r| {
-                let mut acc = [0.0f32; 10];
-                let mut wsum = 0.0f32;
-                self.for_each_weight(r, vertical, |j, w| {
-                    let w = w * src_w.map_or(1.0, |s| s[j]);
-                    for (a, v) in acc.iter_mut().zip(src[j]) {
-                        *a += w * v;
-                    }
-                    wsum += w;
-                });
-                if wsum > 0.0 {
-                    (acc.map(|a| a / wsum), wsum)
-                } else {
-                    (src[r], src_w.map_or(1.0, |s| s[r]))
+                if let Some(values) = world
+                    && self.crosses_border(r)
+                {
+                    let mut mean = WeightedMean::default();
+                    self.for_each_world_weight(r, |j, w| mean.add(w, values[j]));
+                    return mean.get().unwrap_or((values[r], 1.0));
                 }
+                let mut mean = WeightedMean::default();
+                self.for_each_weight(r, vertical, |j, w| {
+                    mean.add(w * src_w.map_or(1.0, |s| s[j]), src[j]);
+                });
+                mean.get().unwrap_or((src[r], src_w.map_or(1.0, |s| s[r])))
             })
     }
 
     /// The separable Gaussian filter of the integrated values (see the
     /// module doc), rows then columns; each row result carries its weight
     /// sum into the column pass. `values` (AO, then the 9 SH) is dropped
-    /// after the row pass; the column pass writes the filtered AO and SH
-    /// arrays themselves.
+    /// after the row pass, unless receivers gather in world space; the
+    /// column pass writes the filtered AO and SH arrays themselves.
     fn filter(&self, values: Vec<[f32; 10]>) -> (Vec<f32>, Vec<[f32; SH_COUNT]>) {
         let (row_values, row_weights): (Vec<[f32; 10]>, Vec<f32>) =
-            self.pass(&values, None, false).unzip();
-        // Kept for the receivers that gather in world space.
-        let values = self.world.map(|_| values);
-        self.pass(&row_values, Some(&row_weights), true)
-            .enumerate()
-            .map(|(r, (v, _))| {
-                let v = if let Some(values) = &values
-                    && self.crosses_border(r)
-                {
-                    self.world_value(values, r)
-                } else {
-                    v
-                };
-                (v[0], std::array::from_fn(|i| v[1 + i]))
-            })
+            self.pass(&values, None, false, None).unzip();
+        let world = self.world.map(|_| values);
+        self.pass(&row_values, Some(&row_weights), true, world.as_deref())
+            .map(|(v, _)| (v[0], std::array::from_fn(|i| v[1 + i])))
             .unzip()
     }
+}
 
-    /// Receiver `r`'s filtered values from its world-space neighbours
-    /// ([`Self::for_each_world_weight`]).
-    fn world_value(&self, values: &[[f32; 10]], r: usize) -> [f32; 10] {
-        let mut acc = [0.0f32; 10];
-        let mut wsum = 0.0f32;
-        self.for_each_world_weight(r, |j, w| {
-            for (a, v) in acc.iter_mut().zip(values[j]) {
-                *a += w * v;
-            }
-            wsum += w;
-        });
-        if wsum > 0.0 {
-            acc.map(|a| a / wsum)
-        } else {
-            values[r]
+/// A weighted mean of the filter's values (AO, then the 9 SH).
+#[derive(Default)]
+struct WeightedMean {
+    sum: [f32; 10],
+    weight: f32,
+}
+
+impl WeightedMean {
+    #[inline]
+    fn add(&mut self, w: f32, v: [f32; 10]) {
+        for (a, v) in self.sum.iter_mut().zip(v) {
+            *a += w * v;
         }
+        self.weight += w;
+    }
+
+    /// The mean and the weight sum; none without weight.
+    #[inline]
+    fn get(&self) -> Option<([f32; 10], f32)> {
+        (self.weight > 0.0).then(|| (self.sum.map(|a| a / self.weight), self.weight))
     }
 }
 
