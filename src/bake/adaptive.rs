@@ -394,13 +394,12 @@ pub const FILTERED_MARGIN: f64 = 1.8;
 /// margin blended linearly towards the filtered one.
 #[inline]
 pub fn model_margin(filtered: f32, unfiltered: f32) -> f64 {
-    let removed = if unfiltered > 0.0 {
-        // max/min, not clamp: a NaN share counts as unfiltered.
-        (1.0 - filtered as f64 / unfiltered as f64)
-            .max(0.0)
-            .min(1.0)
-    } else {
+    let removed = 1.0 - filtered as f64 / unfiltered as f64;
+    // A NaN share (no variance) counts as unfiltered.
+    let removed = if removed.is_nan() {
         0.0
+    } else {
+        removed.clamp(0.0, 1.0)
     };
     UNFILTERED_MARGIN + (FILTERED_MARGIN - UNFILTERED_MARGIN) * removed
 }
