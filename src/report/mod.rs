@@ -40,13 +40,17 @@ use crate::error::{Error, Result};
 use crate::gltf::Scene;
 use crate::pipeline::{self, Prepared};
 use crate::settings::{Method, Settings};
-use crate::sh::SH_COUNT;
 use crate::stage::{StageTimer, progress_bar};
 use metrics::{cost_at_error, error_stats, loglog_at, sh_band_rmse};
 
 /// Seed of the reference: never one a run uses.
 fn reference_seed(seed: u64) -> u64 {
     seed ^ 0x5eed_0f2e_f02e_2ce5
+}
+
+/// The values of `v` at the texels `indices`, in their order.
+fn picked<T: Copy>(v: &[T], indices: &[usize]) -> Vec<T> {
+    indices.iter().map(|&i| v[i]).collect()
 }
 
 /// Runs the sweep on a loaded scene. `timer` holds the stages so far (the
@@ -116,12 +120,8 @@ pub fn sweep(
     // them with their nearest valid texel's value), and the adaptive method
     // spends only its pre-pass on them: every run is compared on the others.
     let compared: Vec<usize> = (0..texels).filter(|&i| !prepared.inside[i]).collect();
-    let pick = |v: &[f32]| -> Vec<f32> { compared.iter().map(|&i| v[i]).collect() };
-    let pick_sh = |v: &[[f32; SH_COUNT]]| -> Vec<[f32; SH_COUNT]> {
-        compared.iter().map(|&i| v[i]).collect()
-    };
-    let ref_ao = &pick(&reference.bake.ao);
-    let ref_sh = &pick_sh(&reference.bake.sh);
+    let ref_ao = &picked(&reference.bake.ao, &compared);
+    let ref_sh = &picked(&reference.bake.sh, &compared);
     let ref_sh_flat: Vec<f32> = ref_sh.iter().flatten().copied().collect();
 
     let mut runs = Vec::new();
@@ -134,8 +134,8 @@ pub fn sweep(
         let mut run_timer = StageTimer::new();
         let passes = pipeline::bake_prepared(&prepared, &s, &mut run_timer)?;
         let bake_seconds = run_timer.total();
-        let ao = error_stats(&pick(&passes.bake.ao), ref_ao);
-        let run_sh = pick_sh(&passes.bake.sh);
+        let ao = error_stats(&picked(&passes.bake.ao, &compared), ref_ao);
+        let run_sh = picked(&passes.bake.sh, &compared);
         let sh_flat: Vec<f32> = run_sh.iter().flatten().copied().collect();
         let fs = passes.filter_stats.as_ref();
         let default_settings = b.is_default();
