@@ -668,7 +668,12 @@ pub fn bake(
                 })
                 .collect();
             let sd = neighbourhood_mean(receivers, &grid, inside, 1, &own_sd, &reach);
-            let count = neighbourhood_count(receivers, &grid, inside, 1, &reach);
+            // Only where some receiver saw nothing (as with one cell).
+            let count = if seen.iter().all(|&s| s) {
+                Vec::new()
+            } else {
+                neighbourhood_count(receivers, &grid, inside, 1, &reach)
+            };
             (0..n)
                 .map(|r| {
                     let (f, u) = left[r];
