@@ -142,7 +142,7 @@ struct Cli {
     /// Adaptive, expert: hemisphere cells with bounds and a filter of their own (1 or 4).
     #[arg(long, default_value_t = DEFAULTS.adaptive.cells)]
     cells: u32,
-    /// Adaptive, expert: texels whose filter reaches a chart border gather neighbours in world space, across charts (measured worse on Sponza; off by default).
+    /// Adaptive, expert: texels whose filter reaches a chart border gather neighbours in world space, across charts (off by default: even or worse on four of five measured scenes).
     #[arg(long)]
     cross_charts: bool,
     /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.

@@ -112,10 +112,8 @@ impl Default for Settings {
             padding: 2,
             packing: Packing::Fast,
             uv: UvSource::Generate,
-            // Adaptive: at 256-ray Monte Carlo's AO error in 0.19x its
-            // time on the Cornell box, 0.51x on Sponza at 1024, 0.69x on
-            // the engine, 0.89x on Sponza at 512 and 1.05x on the curtains
-            // (README, "The adaptive method").
+            // Adaptive: measured against 256-ray Monte Carlo on five scenes
+            // in the README's comparison table ("The adaptive method").
             method: Method::Adaptive,
             rays: DEFAULT_RAYS,
             filter: ShearedOptions::default(),

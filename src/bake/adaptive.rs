@@ -47,8 +47,9 @@
 //!    Monte Carlo's.
 //!
 //! Expert: `cross_charts` lets a receiver whose filter reaches a chart
-//! border gather in world space across charts ([`World`]); measured about
-//! even with the grid filter on Sponza (see [`AdaptiveOptions::cross_charts`]).
+//! border gather in world space across charts ([`World`]); measured even
+//! with the grid filter or worse on four of five scenes, better on the
+//! curtains (see [`AdaptiveOptions::cross_charts`]).
 //!
 //! Expert: `cells` 4 gives each 2x2 quadrant of the hemisphere its own
 //! z_min, spread, N_eff and filter (the per-cell variant); measured
@@ -92,8 +93,9 @@ pub struct AdaptiveOptions {
     pub cells: u32,
     /// Expert: receivers whose filter reaches a chart border gather their
     /// neighbours in world space, across charts and UV seams (one cell
-    /// only). Off by default: measured worse on Sponza 1024 (quality 256,
-    /// 2048-ray reference): AO RMSE 0.0062 -> 0.0067, p99 0.0205 ->
+    /// only). Off by default (the five scenes' measurement ends this
+    /// note). Its first version measured worse on Sponza 1024 (quality
+    /// 256, 2048-ray reference): AO RMSE 0.0062 -> 0.0067, p99 0.0205 ->
     /// 0.0234, SH L1 0.00189 -> 0.00213, for 2% fewer rays, until the
     /// worst texels (AO 0.09-0.11 darker) showed their lenders: faces of a
     /// bevelled edge sharing a shading normal with different shares of the
