@@ -71,6 +71,9 @@ fn main() {
     };
     let n = p.receivers.len();
     let mut class: Option<Vec<usize>> = None;
+    // The first run's AO p99: later runs count their texels above it per
+    // ray count (where the tail goes).
+    let mut tail: Option<f64> = None;
     const NAMES: [&str; 4] = ["nothing hit", "contact", "narrow (<2 texels)", "wide"];
     for budget in aobake::report::parse_budgets(&runs).expect("RUNS") {
         let mut s = budget.settings(&base, 0);
@@ -170,7 +173,30 @@ fn main() {
                 );
             }
         }
+        if let Some(t) = tail {
+            // Per ray count: texels, RMSE, and how many lie above the first
+            // run's p99 (1% of texels there).
+            let mut by: std::collections::BTreeMap<u64, [f64; 3]> = Default::default();
+            for i in (0..n).filter(|&i| !p.inside[i]) {
+                let e = (out.bake.ao[i] - ref_ao[i]) as f64;
+                let c = by.entry(rays[i] as u64).or_default();
+                c[0] += 1.0;
+                c[1] += e * e;
+                c[2] += (e.abs() > t) as u8 as f64;
+            }
+            let m = errs.len() as f64;
+            for (k, c) in by {
+                println!(
+                    "  rays {k:5}  {:5.1}% of texels  rmse {:.4}  above first run's p99: {:.2}% of all texels ({:.2}% of these)",
+                    100.0 * c[0] / m,
+                    (c[1] / c[0]).sqrt(),
+                    100.0 * c[2] / m,
+                    100.0 * c[2] / c[0]
+                );
+            }
+        }
         errs.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        tail.get_or_insert(errs[(errs.len() as f64 * 0.99) as usize]);
         let m: f64 = acc.iter().map(|c| c[0]).sum();
         let bands = aobake::report::metrics::sh_band_rmse(&run_sh, &kept_ref_sh);
         println!(

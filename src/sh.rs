@@ -54,10 +54,68 @@ pub fn open_hemisphere(n: Vec3) -> [f32; SH_COUNT] {
     std::array::from_fn(|i| CLAMPED_COSINE_BAND[BAND[i]] / std::f32::consts::PI * y[i])
 }
 
+/// Coefficients of the part of a receiver's clamped-cosine hemisphere
+/// (about shading normal `n`) that lies below its geometric plane (normal
+/// `geo`): (1/pi) integral over {w.n > 0, w.geo <= 0} of (n.w) Y_i(w), the
+/// share a shading normal tilted from the geometric one sends into the
+/// surface (occluded without tracing). Its first coefficient is Y_0 times
+/// the AO share (1 - n.geo) / 2. Zero when the normals agree, the open
+/// hemisphere when they are opposite, zero for non-finite input.
+///
+/// Exact, from the lune's moments: with a = n x geo (normalised), m = a x n
+/// and theta the angle between n and geo, the lune is w = cos(alpha) a +
+/// sin(alpha) (-cos(phi) m + sin(phi) n), alpha in [0, pi], phi in [0,
+/// theta], and the Y_i are quadratic in w, so the moments of n.w (1, w,
+/// w w^T) over it give the coefficients.
+pub fn below_plane(n: Vec3, geo: Vec3) -> [f32; SH_COUNT] {
+    let (n, g) = (n.as_dvec3(), geo.as_dvec3());
+    let c = n.dot(g);
+    let cross = n.cross(g);
+    let s = cross.length();
+    if !(c.is_finite() && s.is_finite()) || (s < 1e-9 && c > 0.0) {
+        return [0.0; SH_COUNT];
+    }
+    if s < 1e-9 {
+        return open_hemisphere(n.as_vec3());
+    }
+    let pi = std::f64::consts::PI;
+    let theta = s.atan2(c);
+    let a = cross / s;
+    let m = a.cross(n);
+    // Moments of n.w over the lune, in the frame (a, m, n).
+    let m0 = pi / 2.0 * (1.0 - c);
+    let first =
+        m * (-2.0 / 3.0 * s * s) + n * (4.0 / 3.0 * (theta / 2.0 - (2.0 * theta).sin() / 4.0));
+    let (aa, mm, nn, mn) = (
+        pi / 8.0 * (1.0 - c),
+        pi / 8.0 * (1.0 - c * c * c),
+        3.0 * pi / 8.0 * (2.0 / 3.0 - c + c * c * c / 3.0),
+        -pi / 8.0 * s * s * s,
+    );
+    // The second moment matrix, entry (i, j) in world axes.
+    let second = |i: usize, j: usize| {
+        aa * a[i] * a[j] + mm * m[i] * m[j] + nn * n[i] * n[j] + mn * (m[i] * n[j] + n[i] * m[j])
+    };
+    let (x, y, z) = (0, 1, 2);
+    let k = [
+        0.282_094_8 * m0,
+        0.488_602_5 * first.y,
+        0.488_602_5 * first.z,
+        0.488_602_5 * first.x,
+        1.092_548_4 * second(x, y),
+        1.092_548_4 * second(y, z),
+        0.315_391_57 * (3.0 * second(z, z) - m0),
+        1.092_548_4 * second(x, z),
+        0.546_274_2 * (second(x, x) - second(y, y)),
+    ];
+    k.map(|v| (v / pi) as f32)
+}
+
 /// The occluded share (less) of a receiver whose open hemisphere projects
-/// to `open` ([`open_hemisphere`] of its normal n), from `rays`
-/// cosine-weighted rays around n whose occluded ones summed
-/// `occluded_sum` and all of which summed `all_sum` (sum Y_i(w)), with the
+/// to `open` ([`open_hemisphere`] of its normal n), from cosine-weighted
+/// rays around n, each weighing `per_ray` (1 / rays), whose occluded ones
+/// summed `occluded_sum` and all of which summed `all_sum` (sum Y_i(w)),
+/// with the
 /// open projection as a control variate of weight `visible` (the
 /// receiver's visible fraction): at `visible` 1 the occluded rays' share
 /// alone (exact for an open receiver), at 0 the visible rays' own sum less
@@ -70,12 +128,11 @@ pub fn occluded_share(
     open: &[f32; SH_COUNT],
     occluded_sum: &[f32; SH_COUNT],
     all_sum: &[f32; SH_COUNT],
-    rays: u32,
+    per_ray: f32,
     visible: f32,
 ) -> [f32; SH_COUNT] {
-    let inv = 1.0 / rays.max(1) as f32;
     let w = 1.0 - visible.clamp(0.0, 1.0);
-    std::array::from_fn(|i| -occluded_sum[i] * inv + w * (all_sum[i] * inv - open[i]))
+    std::array::from_fn(|i| -occluded_sum[i] * per_ray + w * (all_sum[i] * per_ray - open[i]))
 }
 
 /// Coefficients of a receiver with normal n from its rays' sums (see
@@ -90,7 +147,13 @@ pub fn from_sums(
     visible: f32,
 ) -> [f32; SH_COUNT] {
     let open = open_hemisphere(n);
-    let share = occluded_share(&open, occluded_sum, all_sum, rays, visible);
+    let share = occluded_share(
+        &open,
+        occluded_sum,
+        all_sum,
+        1.0 / rays.max(1) as f32,
+        visible,
+    );
     std::array::from_fn(|i| open[i] + share[i])
 }
 
@@ -136,6 +199,52 @@ mod tests {
             let v = integrate(|w| (n.dot(w).max(0.0) * basis(w)[i]) as f64) / std::f64::consts::PI;
             assert!((v - ci as f64).abs() < 2e-3, "c{i}: {v} vs {ci}");
         }
+    }
+
+    #[test]
+    fn below_plane_matches_numeric_projection() {
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        // Tilts of 3, 40, 90 and 150 degrees, about different axes.
+        for (axis, degrees) in [
+            (Vec3::X, 3.0f32),
+            (Vec3::new(1.0, 1.0, 0.0), 40.0),
+            (Vec3::new(0.0, 1.0, -1.0), 90.0),
+            (Vec3::Z, 150.0),
+        ] {
+            let axis = axis.cross(n).normalize();
+            let geo = glam::Quat::from_axis_angle(axis, degrees.to_radians()) * n;
+            let c = below_plane(n, geo);
+            for (i, &ci) in c.iter().enumerate() {
+                let v = integrate(|w| {
+                    if n.dot(w) > 0.0 && geo.dot(w) <= 0.0 {
+                        (n.dot(w) * basis(w)[i]) as f64
+                    } else {
+                        0.0
+                    }
+                }) / std::f64::consts::PI;
+                assert!(
+                    (v - ci as f64).abs() < 2e-3,
+                    "{degrees} deg, c{i}: {v} vs {ci}"
+                );
+            }
+            // The first coefficient is Y_0 times the AO share below.
+            let share = (1.0 - n.dot(geo)) / 2.0;
+            assert!((c[0] - 0.282_094_8 * share).abs() < 1e-6, "{degrees} deg");
+        }
+    }
+
+    #[test]
+    fn below_plane_ends() {
+        let n = Vec3::new(0.0, 0.6, 0.8);
+        assert_eq!(below_plane(n, n), [0.0; SH_COUNT]);
+        let open = open_hemisphere(n);
+        let flipped = below_plane(n, -n);
+        assert!((0..SH_COUNT).all(|i| (flipped[i] - open[i]).abs() < 1e-6));
+        // Nearly agreeing normals: nearly nothing below, no NaN.
+        let tilt = glam::Quat::from_rotation_x(1e-4) * n;
+        assert!(below_plane(n, tilt).iter().all(|c| c.abs() < 1e-4));
+        assert_eq!(below_plane(Vec3::NAN, n), [0.0; SH_COUNT]);
+        assert_eq!(below_plane(n, Vec3::INFINITY), [0.0; SH_COUNT]);
     }
 
     #[test]
