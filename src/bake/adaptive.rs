@@ -196,8 +196,8 @@ impl AdaptiveOptions {
 
     /// Bytes per atlas texel beyond what every method holds (its results,
     /// AO and SH, which the filter's column pass writes), at the larger of
-    /// two peaks. The bounds: the running sums (76 B per cell: visible
-    /// count, occluded and all rays' SH sums), own z_min (4 B per cell),
+    /// two peaks. The bounds: the running sums (80 B per cell: visible
+    /// and below counts, occluded and all rays' SH sums), own z_min (4 B per cell),
     /// the texel map (4 B) and the bounds' working arrays (spread and
     /// filter z_min, sigma, supports, sd twice, N_eff and its row sums,
     /// the widest filter's per-reach minimum, the allocation's terms and
@@ -209,7 +209,7 @@ impl AdaptiveOptions {
     /// share of the nodes) through both, and own z_min through the filter.
     pub fn bytes_per_texel(&self) -> u64 {
         let cells = self.cells as u64;
-        let sums = 76 * cells;
+        let sums = std::mem::size_of::<CellSums>() as u64 * cells;
         let world = if self.cross_charts && cells == 1 {
             20
         } else {
