@@ -743,19 +743,21 @@ pub fn bake(
                     let u = ray.point(i);
                     let s = &mut sums[k * cells + cell_of_point(u, cells)];
                     let d = ray.direction_of(u);
-                    if d.dot(ray.geo_normal) <= 0.0 {
+                    // Below the surface: occluded without tracing
+                    // ([`Tracer::receiver_visible`]'s test, made here
+                    // because a filtered receiver only counts those).
+                    let below = d.dot(ray.geo_normal) <= 0.0;
+                    if below {
                         s.below += 1;
-                        if !above_only {
-                            sh::accumulate(&mut s.all, 1.0, d);
-                            sh::accumulate(&mut s.sh, 1.0, d);
+                        if above_only {
+                            continue;
                         }
+                    }
+                    sh::accumulate(&mut s.all, 1.0, d);
+                    if below || tracer.occluded(ray.origin, d, p.max_distance) {
+                        sh::accumulate(&mut s.sh, 1.0, d);
                     } else {
-                        sh::accumulate(&mut s.all, 1.0, d);
-                        if tracer.receiver_visible(ray.origin, ray.geo_normal, d, p.max_distance) {
-                            s.visible += 1;
-                        } else {
-                            sh::accumulate(&mut s.sh, 1.0, d);
-                        }
+                        s.visible += 1;
                     }
                 }
             }
