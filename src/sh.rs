@@ -13,20 +13,36 @@ pub const SH_COUNT: usize = 9;
 /// Band l of coefficient i.
 pub const BAND: [usize; SH_COUNT] = [0, 1, 1, 1, 2, 2, 2, 2, 2];
 
+/// The basis's normalisations: Y_0 = K0, Y_1 = K1 (y, z, x), Y_2 = K2_PRODUCT
+/// (xy, yz, xz), K2_ZZ (3 z^2 - 1) and K2_DIFFERENCE (x^2 - y^2). Kept in
+/// f64 for [`below_plane`], which integrates the same polynomials.
+const K0: f64 = 0.282_094_8;
+const K1: f64 = 0.488_602_5;
+const K2_PRODUCT: f64 = 1.092_548_4;
+const K2_ZZ: f64 = 0.315_391_57;
+const K2_DIFFERENCE: f64 = 0.546_274_2;
+
 /// The 9 basis functions Y_i(w) for a unit direction w = (x, y, z).
 #[inline]
 pub fn basis(w: Vec3) -> [f32; SH_COUNT] {
     let (x, y, z) = (w.x, w.y, w.z);
+    let (k0, k1, kp, kz, kd) = (
+        K0 as f32,
+        K1 as f32,
+        K2_PRODUCT as f32,
+        K2_ZZ as f32,
+        K2_DIFFERENCE as f32,
+    );
     [
-        0.282_094_8,
-        0.488_602_5 * y,
-        0.488_602_5 * z,
-        0.488_602_5 * x,
-        1.092_548_4 * x * y,
-        1.092_548_4 * y * z,
-        0.315_391_57 * (3.0 * z * z - 1.0),
-        1.092_548_4 * x * z,
-        0.546_274_2 * (x * x - y * y),
+        k0,
+        k1 * y,
+        k1 * z,
+        k1 * x,
+        kp * x * y,
+        kp * y * z,
+        kz * (3.0 * z * z - 1.0),
+        kp * x * z,
+        kd * (x * x - y * y),
     ]
 }
 
@@ -97,16 +113,17 @@ pub fn below_plane(n: Vec3, geo: Vec3) -> [f32; SH_COUNT] {
         aa * a[i] * a[j] + mm * m[i] * m[j] + nn * n[i] * n[j] + mn * (m[i] * n[j] + n[i] * m[j])
     };
     let (x, y, z) = (0, 1, 2);
+    // The basis polynomials with w w^T and w replaced by their moments.
     let k = [
-        0.282_094_8 * m0,
-        0.488_602_5 * first.y,
-        0.488_602_5 * first.z,
-        0.488_602_5 * first.x,
-        1.092_548_4 * second(x, y),
-        1.092_548_4 * second(y, z),
-        0.315_391_57 * (3.0 * second(z, z) - m0),
-        1.092_548_4 * second(x, z),
-        0.546_274_2 * (second(x, x) - second(y, y)),
+        K0 * m0,
+        K1 * first.y,
+        K1 * first.z,
+        K1 * first.x,
+        K2_PRODUCT * second(x, y),
+        K2_PRODUCT * second(y, z),
+        K2_ZZ * (3.0 * second(z, z) - m0),
+        K2_PRODUCT * second(x, z),
+        K2_DIFFERENCE * (second(x, x) - second(y, y)),
     ];
     k.map(|v| (v / pi) as f32)
 }
