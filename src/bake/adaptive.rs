@@ -1740,6 +1740,24 @@ mod tests {
         }
     }
 
+    /// (sum w)^2 / sum w^2 of a Gaussian of `sigma` texels over the texel
+    /// offsets `xs` x `ys`: the effective neighbours, summed directly.
+    fn gaussian_n_eff(
+        sigma: f32,
+        xs: std::ops::RangeInclusive<i32>,
+        ys: std::ops::RangeInclusive<i32>,
+    ) -> f64 {
+        let (mut s1, mut s2) = (0.0f64, 0.0f64);
+        for y in ys {
+            for x in xs.clone() {
+                let w = (-((x * x + y * y) as f64) / (2.0 * (sigma as f64).powi(2))).exp();
+                s1 += w;
+                s2 += w * w;
+            }
+        }
+        s1 * s1 / s2
+    }
+
     #[test]
     fn effective_neighbours_of_the_separable_filter_on_a_plane() {
         // Against the direct sum (sum w)^2 / sum w^2 of a Gaussian over the
@@ -1753,17 +1771,7 @@ mod tests {
             let support = uniform.support(&rc);
             let ours = support.effective_neighbours();
             let reach = (2.0 * sigma).ceil() as i32;
-            let direct = |xs: std::ops::RangeInclusive<i32>| {
-                let (mut s1, mut s2) = (0.0f64, 0.0f64);
-                for y in xs.clone() {
-                    for x in xs.clone() {
-                        let w = (-((x * x + y * y) as f64) / (2.0 * (sigma as f64).powi(2))).exp();
-                        s1 += w;
-                        s2 += w * w;
-                    }
-                }
-                s1 * s1 / s2
-            };
+            let direct = |xs: std::ops::RangeInclusive<i32>| gaussian_n_eff(sigma, xs.clone(), xs);
             let centre = (side * side / 2) as usize;
             let (c, d) = (ours[centre] as f64, direct(-reach..=reach));
             assert!((c - d).abs() / d < 1e-3, "{sigma}: {c} vs {d}");
@@ -1792,17 +1800,7 @@ mod tests {
         let side = 9u32;
         let sigma = 1.0f32;
         let reach = 2i32;
-        let direct = |xs: std::ops::RangeInclusive<i32>, ys: std::ops::RangeInclusive<i32>| {
-            let (mut s1, mut s2) = (0.0f64, 0.0f64);
-            for y in ys {
-                for x in xs.clone() {
-                    let w = (-((x * x + y * y) as f64) / (2.0 * (sigma as f64).powi(2))).exp();
-                    s1 += w;
-                    s2 += w * w;
-                }
-            }
-            s1 * s1 / s2
-        };
+        let direct = |xs, ys| gaussian_n_eff(sigma, xs, ys);
         let centre = (side * side / 2) as usize;
         for (degrees, want) in [
             (15.0f32, direct(0..=0, -reach..=reach)),
