@@ -1268,6 +1268,21 @@ impl FilterSupport<'_> {
         })
     }
 
+    /// Whether receiver j, at `rel` from receiver r, may lend to it on
+    /// the grid or in world space: not inside geometry, within r's z_min,
+    /// through the leak rule and with a shading normal within
+    /// [`LENDER_NORMAL_AGREEMENT`].
+    #[inline]
+    fn lends(&self, r: usize, j: usize, rel: Vec3) -> bool {
+        let rc = self.receivers;
+        let (n, geo) = (rc.normal[r], rc.geo_normal[r]);
+        // (Written as the rejections, so a NaN passes as it did.)
+        !(self.inside[j]
+            || rel.length() > self.z_min[r]
+            || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], rc.footprint[r])
+            || rc.normal[j].dot(n) < LENDER_NORMAL_AGREEMENT)
+    }
+
     /// Calls `f(j, w)` for each receiver j that lends to receiver `r`
     /// (which [`Self::crosses_border`]) in world space, on any chart: within
     /// its reach (times its footprint) and z_min, not inside geometry,
@@ -1314,13 +1329,10 @@ impl FilterSupport<'_> {
                     let j = it.item as usize;
                     let rel = rc.position[j] - pr;
                     if j == r
-                        || self.inside[j]
                         || world.own_z[j] < z
-                        || rel.length() > z
-                        || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], fp)
+                        || !self.lends(r, j, rel)
                         || (below - below_fraction(rc.normal[j], rc.geo_normal[j])).abs()
                             > BELOW_AGREEMENT
-                        || rc.normal[j].dot(n) < LENDER_NORMAL_AGREEMENT
                     {
                         return;
                     }
@@ -1364,12 +1376,7 @@ impl FilterSupport<'_> {
                     return k - 1;
                 };
                 let rel = rc.position[j] - pr;
-                if self.inside[j]
-                    || rel.length() > self.z_min[r]
-                    || !lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], fp)
-                    || rc.normal[j].dot(n) < LENDER_NORMAL_AGREEMENT
-                    || !cells_agree(tangent, rc.normal[j])
-                {
+                if !self.lends(r, j, rel) || !cells_agree(tangent, rc.normal[j]) {
                     return k - 1;
                 }
                 let t = rel - geo * rel.dot(geo);
