@@ -73,6 +73,7 @@ fn main() {
         ..Default::default()
     };
     let n = p.receivers.len();
+    let inside: &[bool] = p.inside.as_deref().unwrap_or_default();
     let mut class: Option<Vec<usize>> = None;
     // The first run's AO p99: later runs count their texels above it per
     // ray count (where the tail goes).
@@ -125,7 +126,7 @@ fn main() {
         // The tail threshold: the first Monte Carlo run's AO p99.
         if tail.is_none() && out.adaptive_stats.is_none() {
             let mut e: Vec<f64> = (0..n)
-                .filter(|&i| !p.inside[i])
+                .filter(|&i| !inside[i])
                 .map(|i| (out.bake.ao[i] - ref_ao[i]).abs() as f64)
                 .collect();
             e.sort_by(|a, b| a.partial_cmp(b).unwrap());
@@ -141,7 +142,7 @@ fn main() {
         // The texels compared: SH of the run and of the reference.
         let (mut run_sh, mut kept_ref_sh) = (Vec::new(), Vec::new());
         for i in 0..n {
-            if p.inside[i] {
+            if inside[i] {
                 continue;
             }
             let e = (out.bake.ao[i] - ref_ao[i]) as f64;
@@ -164,7 +165,7 @@ fn main() {
             .ok()
             .and_then(|v| v.parse().ok())
         {
-            let mut order: Vec<usize> = (0..n).filter(|&i| !p.inside[i]).collect();
+            let mut order: Vec<usize> = (0..n).filter(|&i| !inside[i]).collect();
             let err = |i: usize| (out.bake.ao[i] - ref_ao[i]).abs();
             order.sort_by(|&a, &b| err(b).total_cmp(&err(a)));
             let rc = &p.receivers;
@@ -193,7 +194,7 @@ fn main() {
             // Per ray count: texels, RMSE, and how many lie above the first
             // run's p99 (1% of texels there).
             let mut by: std::collections::BTreeMap<u64, [f64; 3]> = Default::default();
-            for i in (0..n).filter(|&i| !p.inside[i]) {
+            for i in (0..n).filter(|&i| !inside[i]) {
                 let e = (out.bake.ao[i] - ref_ao[i]) as f64;
                 let c = by.entry(rays[i] as u64).or_default();
                 c[0] += 1.0;

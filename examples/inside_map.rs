@@ -26,10 +26,11 @@ fn main() {
     let p = pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
     let passes = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).expect("bake");
     let r = &p.receivers;
+    let inside = passes.inside(&p);
     let mut img = vec![0u8; (r.width * r.height * 3) as usize];
-    for i in 0..r.len() {
+    for (i, &inside) in inside.iter().enumerate() {
         let t = r.texel[i] as usize * 3;
-        let px = if p.inside[i] {
+        let px = if inside {
             [255, 0, 255]
         } else {
             let g = (passes.bake.ao[i] * 200.0) as u8;
@@ -41,7 +42,7 @@ fn main() {
     std::fs::write(&args[1], png).unwrap();
     println!(
         "{} of {} texels inside",
-        p.inside.iter().filter(|&&x| x).count(),
+        inside.iter().filter(|&&x| x).count(),
         r.len()
     );
 }

@@ -1,6 +1,7 @@
-//! The pipeline: load -> unwrap -> rasterize -> trace -> validity -> bake
+//! The pipeline: load -> unwrap -> rasterize -> BVH -> validity -> bake
 //! -> dilate -> encode -> write, each stage timed once on one
-//! [`StageTimer`].
+//! [`StageTimer`]. The adaptive method has no validity stage: its
+//! pre-pass makes the same test on the same rays.
 //!
 //! In: a loaded [`Scene`] (or a path) and validated [`Settings`]. Out: a
 //! [`Baked`] holding every intermediate (for tests and reports) and the
@@ -175,8 +176,10 @@ pub struct Prepared {
     /// The same in bake units.
     pub max_distance: f32,
     /// Per receiver: inside or behind geometry ([`crate::bake::validity`]);
-    /// its texel shows its nearest valid receiver instead.
-    pub inside: Vec<bool>,
+    /// its texel shows its nearest valid receiver instead. All false
+    /// without the fill; `None` when the method finds them itself (the
+    /// adaptive method, in its pre-pass: [`BakePasses::inside`]).
+    pub inside: Option<Vec<bool>>,
 }
 
 /// What a method's passes over prepared receivers produced.
@@ -189,6 +192,18 @@ pub struct BakePasses {
     /// The method's own passes: `trace` (Monte Carlo), or `sparse pass` and
     /// `filter pass` (filtered).
     pub stages: Vec<StageTime>,
+}
+
+impl BakePasses {
+    /// Per receiver: inside geometry, from the validity stage or, when
+    /// the method found them itself, from its passes.
+    pub fn inside<'a>(&'a self, p: &'a Prepared) -> &'a [bool] {
+        match (&p.inside, &self.adaptive_stats) {
+            (Some(inside), _) => inside,
+            (None, Some(stats)) => &stats.inside,
+            (None, None) => &[],
+        }
+    }
 }
 
 /// What the output stages produced.
@@ -268,6 +283,7 @@ fn bake_loaded(
         glb,
         warnings,
     } = output(scene, &prepared, &passes, s, output_dir, timer)?;
+    let texels_inside = passes.inside(&prepared).iter().filter(|&&x| x).count();
     let BakePasses {
         bake,
         filter_stats,
@@ -280,7 +296,6 @@ fn bake_loaded(
         receivers,
         tracer,
         max_distance_world,
-        inside,
         ..
     } = prepared;
     let pass_seconds = total(&pass_stages);
@@ -292,7 +307,7 @@ fn bake_loaded(
         charts: atlas.charts,
         utilization: atlas.utilization,
         texels: receivers.len(),
-        texels_inside: inside.iter().filter(|&&x| x).count(),
+        texels_inside,
         baked_primitives: geometry.receivers.len(),
         occluder_triangles: tracer.triangle_count(),
         rays_per_texel: if s.method == Method::Mc { s.rays } else { 0 },
@@ -409,12 +424,16 @@ pub fn prepare(scene: &Scene, s: &Settings, timer: &mut StageTimer) -> Result<Pr
     let tracer = Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
     timer.lap("bvh");
     let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
-    let inside = if s.fill_inside {
-        validity::inside_geometry(&receivers, &tracer, max_distance)
+    let inside = if !s.fill_inside {
+        Some(vec![false; receivers.len()])
+    } else if s.method == Method::Adaptive {
+        // Its pre-pass's closest hits make the same test on the same rays.
+        None
     } else {
-        vec![false; receivers.len()]
+        let inside = validity::inside_geometry(&receivers, &tracer, max_distance, s.seed);
+        timer.lap("validity");
+        Some(inside)
     };
-    timer.lap("validity");
     Ok(Prepared {
         geometry,
         atlas,
@@ -453,7 +472,7 @@ pub fn bake_prepared(p: &Prepared, s: &Settings, timer: &mut StageTimer) -> Resu
             let (b, stats) = adaptive::bake(
                 receivers,
                 tracer,
-                &p.inside,
+                s.fill_inside,
                 &s.adaptive,
                 &params,
                 timer,
@@ -496,7 +515,7 @@ pub fn output(
         receivers.width,
         receivers.height,
         &receivers.texel,
-        &p.inside,
+        passes.inside(p),
     );
     let lightmap = encode::lightmap(receivers, &passes.bake, &fill)?;
     timer.lap("dilate");

@@ -156,8 +156,19 @@ impl Tracer {
     /// negated front normal, so a back face has `ng . dir < 0`.
     #[inline]
     pub fn back_face_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<bool> {
-        let (_, id) = self.closest(origin, dir, t_max)?;
-        Some(self.single_sided[id] && Vec3::from(self.tris[id].ng).dot(dir) < 0.0)
+        self.closest_hit_side(origin, dir, t_max)
+            .map(|(_, back)| back)
+    }
+
+    /// The closest hit in (0, t_max]: its distance, and whether it is the
+    /// back face of a single-sided triangle (see [`Tracer::back_face_hit`]).
+    #[inline]
+    pub fn closest_hit_side(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, bool)> {
+        let (t, id) = self.closest(origin, dir, t_max)?;
+        Some((
+            t,
+            self.single_sided[id] && Vec3::from(self.tris[id].ng).dot(dir) < 0.0,
+        ))
     }
 
     /// Distance to the closest hit in (0, t_max] and the unit geometric

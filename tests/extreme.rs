@@ -111,6 +111,61 @@ fn floor_running_through_a_wall_is_filled_inside_the_wall() {
 }
 
 #[test]
+fn the_adaptive_pre_pass_finds_the_validity_stages_inside_texels() {
+    // The validity stage casts the first rays of the bake's own sequence,
+    // closest-hit, as the adaptive pre-pass does: the pre-pass makes the
+    // same test on the same rays (continuing it past its own rays when it
+    // has fewer), so the adaptive method runs no validity stage.
+    use aobake::pipeline;
+    use aobake::stage::StageTimer;
+    let scenes = [
+        glb(
+            &[floor(), closed_box([-0.2, -0.2, 0.0], [0.2, 0.2, 0.4])],
+            plain_nodes(2),
+        ),
+        glb(
+            &[floor(), closed_box([-0.05, -1.0, -0.3], [0.05, 1.0, 0.3])],
+            plain_nodes(2),
+        ),
+    ];
+    for g in &scenes {
+        let mc = aobake::Settings {
+            seed: 7,
+            ..settings(128, 64, Some(0.5))
+        };
+        let p = pipeline::prepare(&scene(g), &mc, &mut StageTimer::new()).unwrap();
+        let expected = p.inside.clone().unwrap();
+        let count = expected.iter().filter(|&&x| x).count();
+        assert!(count > 20 && count < expected.len() / 2, "{count}");
+        for pre_rays in [4, 16, 32] {
+            let mut s = aobake::Settings {
+                method: aobake::Method::Adaptive,
+                ..mc.clone()
+            };
+            s.adaptive.pre_rays = pre_rays;
+            s.adaptive.cells = 1;
+            let passes = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).unwrap();
+            assert!(
+                passes.adaptive_stats.unwrap().inside == expected,
+                "{pre_rays} rays"
+            );
+        }
+        // Prepared for the adaptive method: no validity stage, the same
+        // texels filled.
+        let s = aobake::Settings {
+            method: aobake::Method::Adaptive,
+            ..mc.clone()
+        };
+        let mut timer = StageTimer::new();
+        let pa = pipeline::prepare(&scene(g), &s, &mut timer).unwrap();
+        assert!(pa.inside.is_none());
+        assert!(timer.stages().iter().all(|st| st.stage != "validity"));
+        let b = aobake::bake_scene(&scene(g), &s).unwrap();
+        assert_eq!(b.report.texels_inside, count);
+    }
+}
+
+#[test]
 fn sheet_facing_the_floor_occludes_and_nothing_is_inside() {
     // A single-sided quad facing down floats above the floor: the floor
     // under it sees front faces, so it is valid, and occluded.

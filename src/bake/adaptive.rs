@@ -61,6 +61,7 @@
 //! worse than one cell per receiver on Sponza (see [`CELL_AGREEMENT`]).
 
 use super::sheared::lends_rays;
+use super::validity::{self, BackFaces};
 use super::{Bake, BakeParams, ReceiverRays};
 use crate::atlas::Receivers;
 use crate::error::{Error, Result};
@@ -222,8 +223,9 @@ impl AdaptiveOptions {
     }
 
     /// Bytes per receiver the bake keeps after it ends, in
-    /// [`AdaptiveStats`]: rays, z_min and sigma.
-    pub const KEPT_BYTES_PER_TEXEL: u64 = 12;
+    /// [`AdaptiveStats`]: rays, z_min, sigma and inside (which the other
+    /// methods' validity stage holds instead).
+    pub const KEPT_BYTES_PER_TEXEL: u64 = 13;
 }
 
 /// What the adaptive bake did.
@@ -236,6 +238,9 @@ pub struct AdaptiveStats {
     pub rays: Vec<u32>,
     pub z_min: Vec<f32>,
     pub sigma_texels: Vec<f32>,
+    /// Per receiver: inside geometry (the validity stage's test, made on
+    /// the pre-pass's rays; all false without `fill_inside`).
+    pub inside: Vec<bool>,
 }
 
 impl AdaptiveStats {
@@ -513,13 +518,15 @@ const SD_REACH: u32 = 2;
 /// Normal agreement of the z_min spread (cos 25 degrees, the leak rule's).
 const SPREAD_AGREEMENT: f32 = 0.906;
 
-/// The adaptive bake (see the module doc). `inside[r]`: receiver r lies
-/// inside geometry ([`super::validity`]). Options validated. Laps:
-/// `pre-pass`, `bounds`, `adaptive pass`, `filter`.
+/// The adaptive bake (see the module doc). `fill_inside`: find the
+/// receivers inside geometry ([`super::validity`], from the pre-pass's
+/// rays; they get the pre-pass only and neither lend nor receive in the
+/// filter), returned in [`AdaptiveStats::inside`]. Options validated.
+/// Laps: `pre-pass`, `bounds`, `adaptive pass`, `filter`.
 pub fn bake(
     receivers: &Receivers,
     tracer: &Tracer,
-    inside: &[bool],
+    fill_inside: bool,
     o: &AdaptiveOptions,
     p: &BakeParams,
     timer: &mut StageTimer,
@@ -529,15 +536,21 @@ pub fn bake(
     let cells = o.cells as usize;
     // 1. Pre-pass. Per receiver and cell (receiver-major): running sums and
     // own z_min.
+    // Its closest hits' faces also tell which receivers lie inside
+    // geometry: the validity stage's test on the same rays (the bake's
+    // sequence), so the adaptive method needs no stage of its own for it.
     let mut sums = vec![CellSums::default(); n * cells];
     let mut own_z = vec![f32::INFINITY; n * cells];
+    let mut inside_found = vec![false; n];
     sums.par_chunks_mut(CHUNK * cells)
         .zip(own_z.par_chunks_mut(CHUNK * cells))
+        .zip(inside_found.par_chunks_mut(CHUNK))
         .enumerate()
-        .for_each(|(c, (sums, zs))| {
-            for k in 0..sums.len() / cells {
+        .for_each(|(c, ((sums, zs), inside))| {
+            for (k, inside) in inside.iter_mut().enumerate() {
                 let r = c * CHUNK + k;
                 let rays = ReceiverRays::new(receivers, r, p.seed);
+                let mut faces = BackFaces::default();
                 for i in 0..o.pre_rays {
                     let u = rays.point(i);
                     let cell = k * cells + cell_of_point(u, cells);
@@ -550,16 +563,23 @@ pub fn bake(
                         sh::accumulate(&mut s.sh, 1.0, d);
                         continue;
                     }
-                    match tracer.closest_hit(rays.origin, d, p.max_distance) {
-                        Some(t) => {
+                    let hit = tracer.closest_hit_side(rays.origin, d, p.max_distance);
+                    if faces.counts(i) {
+                        faces.add(matches!(hit, Some((_, true))));
+                    }
+                    match hit {
+                        Some((t, _)) => {
                             *z = z.min(t);
                             sh::accumulate(&mut s.sh, 1.0, d);
                         }
                         None => s.visible += 1,
                     }
                 }
+                *inside = fill_inside
+                    && validity::finish_inside(&rays, tracer, p.max_distance, o.pre_rays, faces);
             }
         });
+    let inside = &inside_found[..];
     timer.lap("pre-pass");
     // The world-space neighbourhood across chart borders (one cell: a
     // receiver's own z_min is its cell's). Without a tree (it cannot be
@@ -882,6 +902,7 @@ pub fn bake(
         rays,
         z_min,
         sigma_texels,
+        inside: inside_found,
     };
     (bake, stats)
 }

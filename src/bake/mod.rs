@@ -10,8 +10,10 @@
 //!   integrated values (the default);
 //! - [`sheared`]: the sheared filter of Egan et al. 2011 (`--method
 //!   sheared`), sparse rays shared between neighbouring receivers;
-//! - [`validity`]: which receivers lie inside or behind geometry (run
-//!   before either method; their texels are filled, not shown).
+//! - [`validity`]: which receivers lie inside or behind geometry (their
+//!   texels are filled, not shown): a stage before Monte Carlo and the
+//!   sheared method, made by the adaptive method's pre-pass on the same
+//!   rays.
 //!
 //! Here, shared by all of them: [`Bake`], [`BakeParams`] and
 //! [`ReceiverRays`], the rays of one receiver (lifted origin, frame and

@@ -9,10 +9,12 @@
 //! into visible texels; the output fills them from their nearest valid
 //! texel instead (see [`crate::atlas::dilate`]).
 //!
-//! Each receiver casts up to [`VALIDITY_RAYS`] closest-hit rays (its own
-//! scrambled sequence, cosine-weighted); after the first
-//! [`VALIDITY_PROBE`] a receiver that saw no back face stops, so texels in
-//! the open cost a few rays.
+//! Each receiver casts up to [`VALIDITY_RAYS`] closest-hit rays, the
+//! first of the bake's own sequence (seed and stream of the bake, so the
+//! adaptive method's pre-pass, which casts the same closest-hit rays,
+//! finds the same receivers inside without this stage: see
+//! [`BackFaces`]); after the first [`VALIDITY_PROBE`] a receiver that saw
+//! no back face stops, so texels in the open cost a few rays.
 
 use super::ReceiverRays;
 use crate::atlas::Receivers;
@@ -27,30 +29,77 @@ pub const VALIDITY_PROBE: u32 = 4;
 /// geometric horizon) reach back faces.
 pub const INSIDE_FRACTION: f32 = 0.5;
 
-/// Per receiver: inside geometry (see the module doc).
-pub fn inside_geometry(receivers: &Receivers, tracer: &Tracer, max_distance: f32) -> Vec<bool> {
+/// The inside test's running count over a receiver's rays in sequence
+/// order: the rays traced (above the geometric plane) and those whose
+/// closest hit is a back face.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BackFaces {
+    traced: u32,
+    back: u32,
+}
+
+impl BackFaces {
+    /// Whether ray `i` of the sequence is part of the test: one of the
+    /// first [`VALIDITY_RAYS`], past the probe only if the probe saw a
+    /// back face.
+    #[inline]
+    pub fn counts(&self, i: u32) -> bool {
+        i < VALIDITY_RAYS && (i < VALIDITY_PROBE || self.back > 0)
+    }
+
+    /// Counts a traced ray; `back`: its closest hit is a back face.
+    #[inline]
+    pub fn add(&mut self, back: bool) {
+        self.traced += 1;
+        self.back += back as u32;
+    }
+
+    /// Inside: at least [`INSIDE_FRACTION`] of the traced rays reached back
+    /// faces (none traced: not inside).
+    #[inline]
+    pub fn inside(&self) -> bool {
+        self.traced > 0 && self.back as f32 >= INSIDE_FRACTION * self.traced as f32
+    }
+}
+
+/// Per receiver: inside geometry (see the module doc), from the bake's
+/// sequences for `seed`.
+pub fn inside_geometry(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    max_distance: f32,
+    seed: u64,
+) -> Vec<bool> {
     (0..receivers.len())
         .into_par_iter()
         .with_min_len(256)
-        .map(|r| receiver_inside(receivers, tracer, max_distance, r))
+        .map(|r| {
+            let rays = ReceiverRays::new(receivers, r, seed);
+            finish_inside(&rays, tracer, max_distance, 0, BackFaces::default())
+        })
         .collect()
 }
 
-fn receiver_inside(receivers: &Receivers, tracer: &Tracer, max_distance: f32, r: usize) -> bool {
-    let rays = ReceiverRays::with_stream(receivers, r, 0x7a11d, 3);
-    let (mut traced, mut back) = (0u32, 0u32);
-    for i in 0..VALIDITY_RAYS {
-        if i == VALIDITY_PROBE && back == 0 {
-            return false;
+/// Whether the receiver of `rays` is inside, its test continued from ray
+/// `from` with the count of the rays before it.
+pub fn finish_inside(
+    rays: &ReceiverRays,
+    tracer: &Tracer,
+    max_distance: f32,
+    from: u32,
+    mut count: BackFaces,
+) -> bool {
+    for i in from..VALIDITY_RAYS {
+        if !count.counts(i) {
+            break;
         }
         let d = rays.direction(i);
         if d.dot(rays.geo_normal) <= 0.0 {
             continue;
         }
-        traced += 1;
-        back += (tracer.back_face_hit(rays.origin, d, max_distance) == Some(true)) as u32;
+        count.add(tracer.back_face_hit(rays.origin, d, max_distance) == Some(true));
     }
-    traced > 0 && back as f32 >= INSIDE_FRACTION * traced as f32
+    count.inside()
 }
 
 #[cfg(test)]
@@ -105,14 +154,14 @@ mod tests {
         let single = vec![true; tris.len()];
         let tracer = Tracer::with_sides(&tris, &single);
         // Inside: every ray reaches a back face.
-        assert!(inside_geometry(&one_receiver(Vec3::ZERO), &tracer, 1.0)[0]);
+        assert!(inside_geometry(&one_receiver(Vec3::ZERO), &tracer, 1.0, 0)[0]);
         // Outside, looking at the box's front faces, or at nothing.
-        assert!(!inside_geometry(&one_receiver(Vec3::new(0.0, 0.0, 0.2)), &tracer, 1.0)[0]);
-        assert!(!inside_geometry(&one_receiver(Vec3::new(0.0, 0.0, -0.3)), &tracer, 1.0)[0]);
+        assert!(!inside_geometry(&one_receiver(Vec3::new(0.0, 0.0, 0.2)), &tracer, 1.0, 0)[0]);
+        assert!(!inside_geometry(&one_receiver(Vec3::new(0.0, 0.0, -0.3)), &tracer, 1.0, 0)[0]);
         // Beyond the max distance nothing counts.
-        assert!(!inside_geometry(&one_receiver(Vec3::ZERO), &tracer, 0.05)[0]);
+        assert!(!inside_geometry(&one_receiver(Vec3::ZERO), &tracer, 0.05, 0)[0]);
         // Double-sided: back faces are real surfaces.
         let tracer = Tracer::with_sides(&tris, &vec![false; tris.len()]);
-        assert!(!inside_geometry(&one_receiver(Vec3::ZERO), &tracer, 1.0)[0]);
+        assert!(!inside_geometry(&one_receiver(Vec3::ZERO), &tracer, 1.0, 0)[0]);
     }
 }

@@ -27,11 +27,16 @@ pub fn markdown(r: &SweepReport) -> String {
         r.max_distance_world
     ));
     line(format!(
-        "Reference: {}-ray Monte Carlo (seed {}), {:.2} s. Shared stages (load, unwrap, rasterize, BVH, dilate, encode, write): {:.2} s, counted in every end-to-end time. Errors are per texel against the reference, over the {} texels not inside geometry ({} inside are filled from their neighbours in the output and left out); AO bias > 0 means too bright.\n",
+        "Reference: {}-ray Monte Carlo (seed {}), {:.2} s. Shared stages (load, unwrap, rasterize, BVH, validity, dilate, encode, write): {:.2} s, counted in every end-to-end time but the validity stage's {:.2} s in the adaptive runs' (their pre-pass makes its test on the same rays). Errors are per texel against the reference, over the {} texels not inside geometry ({} inside are filled from their neighbours in the output and left out); AO bias > 0 means too bright.\n",
         r.reference_rays,
         r.reference_seed,
         r.reference_seconds,
         r.shared_seconds,
+        r.shared_stages
+            .iter()
+            .filter(|st| st.stage == "validity")
+            .map(|st| st.seconds)
+            .sum::<f64>(),
         r.texels - r.texels_inside,
         r.texels_inside
     ));

@@ -96,7 +96,16 @@ pub fn sweep(
     let total_steps = 1 + budgets.len() as u64 + if rs.stability_rays > 0 { 3 } else { 0 };
     let pb = progress_bar(rs.progress, total_steps, "report");
     pb.set_message("prepare");
-    let prepared = pipeline::prepare(scene, &base, &mut timer)?;
+    // The validity stage is shared (its inside texels are left out of every
+    // comparison), with the runs' seed: the adaptive method makes the same
+    // test on the same rays in its pre-pass and is not charged for it.
+    let with_validity = Settings {
+        method: Method::Mc,
+        seed: rs.seed,
+        ..base.clone()
+    };
+    let prepared = pipeline::prepare(scene, &with_validity, &mut timer)?;
+    let inside: &[bool] = prepared.inside.as_deref().unwrap_or_default();
     let texels = prepared.receivers.len();
 
     // The reference, through the whole pipeline once to time the shared
@@ -116,10 +125,15 @@ pub fn sweep(
     pb.inc(1);
     let shared_seconds = timer.total();
     let shared_stages = timer.into_stages();
+    let validity_seconds: f64 = shared_stages
+        .iter()
+        .filter(|st| st.stage == "validity")
+        .map(|st| st.seconds)
+        .sum();
     // Texels inside geometry never reach the output (the fill replaces
     // them with their nearest valid texel's value), and the adaptive method
     // spends only its pre-pass on them: every run is compared on the others.
-    let compared: Vec<usize> = (0..texels).filter(|&i| !prepared.inside[i]).collect();
+    let compared: Vec<usize> = (0..texels).filter(|&i| !inside[i]).collect();
     let ref_ao = &picked(&reference.bake.ao, &compared);
     let ref_sh = &picked(&reference.bake.sh, &compared);
     let ref_sh_flat: Vec<f32> = ref_sh.iter().flatten().copied().collect();
@@ -144,7 +158,7 @@ pub fn sweep(
             // compared: filled in the output).
             let mut ao = passes.bake.ao.clone();
             for (i, a) in ao.iter_mut().enumerate() {
-                if prepared.inside[i] {
+                if inside[i] {
                     *a = reference.bake.ao[i];
                 }
             }
@@ -159,7 +173,12 @@ pub fn sweep(
             default_settings,
             passes: passes.stages.clone(),
             bake_seconds,
-            end_to_end_seconds: shared_seconds + bake_seconds,
+            end_to_end_seconds: shared_seconds + bake_seconds
+                - if b.method == Method::Adaptive {
+                    validity_seconds
+                } else {
+                    0.0
+                },
             rays_cast: passes.bake.rays,
             rays_per_texel: passes.bake.rays as f64 / texels.max(1) as f64,
             ao,
