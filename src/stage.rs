@@ -80,6 +80,15 @@ pub fn total(stages: &[StageTime]) -> f64 {
     stages.iter().map(|s| s.seconds).sum()
 }
 
+/// Seconds of the stages named `stage` in a list (0 if none).
+pub fn seconds_of(stages: &[StageTime], stage: &str) -> f64 {
+    stages
+        .iter()
+        .filter(|s| s.stage == stage)
+        .map(|s| s.seconds)
+        .sum()
+}
+
 /// A progress bar on stderr, drawn only if `show` and stderr is a terminal.
 pub fn progress_bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
     let pb = ProgressBar::with_draw_target(

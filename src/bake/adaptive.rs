@@ -465,13 +465,10 @@ pub fn model_margin(filtered: f32, unfiltered: f32, unfiltered_margin: f64) -> f
 /// `quality`-ray Monte Carlo's, mean sd^2 / quality^ALPHA, or with
 /// `mean_rays` set, whose mean count reaches it.
 pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
-    // The share of the predicted variance the filter removes.
-    let (sum_f, sum_u) = filtered
-        .par_iter()
-        .zip(unfiltered)
-        .map(|(&f, &u)| (f as f64, u as f64))
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-    let margin = unfiltered_margin(1.0 - sum_f / sum_u);
+    // The predicted variance, and the share of it the filter removes.
+    let total: f64 = unfiltered.iter().map(|&v| v as f64).sum();
+    let kept: f64 = filtered.iter().map(|&v| v as f64).sum();
+    let margin = unfiltered_margin(1.0 - kept / total);
     // Per receiver: demand sd / sqrt(n_eff) and variance share sd^2 / n_eff,
     // both of the variance raised by the receiver's model margin.
     let terms: Vec<(f32, f64)> = filtered
@@ -506,7 +503,6 @@ pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOpti
         // chasing its own tiny variance.
         let counted = unfiltered.iter().filter(|&&v| v > 0.0).count() as f64;
         let floor = counted * nothing_seen_variance(o.pre_rays, 1.0) as f64;
-        let total: f64 = unfiltered.iter().map(|&v| v as f64).sum();
         total.max(floor) * q
     };
     // Whether the counts at `scale` fall short of the goal: fewer rays than

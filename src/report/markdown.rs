@@ -5,6 +5,7 @@
 
 use super::budget::TARGET_RAYS;
 use super::figures::SweepReport;
+use crate::stage::seconds_of;
 
 /// The report as a Markdown page.
 pub fn markdown(r: &SweepReport) -> String {
@@ -32,11 +33,7 @@ pub fn markdown(r: &SweepReport) -> String {
         r.reference_seed,
         r.reference_seconds,
         r.shared_seconds,
-        r.shared_stages
-            .iter()
-            .filter(|st| st.stage == "validity")
-            .map(|st| st.seconds)
-            .sum::<f64>(),
+        seconds_of(&r.shared_stages, "validity"),
         r.texels - r.texels_inside,
         r.texels_inside
     ));

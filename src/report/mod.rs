@@ -40,7 +40,7 @@ use crate::error::{Error, Result};
 use crate::gltf::Scene;
 use crate::pipeline::{self, Prepared};
 use crate::settings::{Method, Settings};
-use crate::stage::{StageTimer, progress_bar};
+use crate::stage::{StageTimer, progress_bar, seconds_of};
 use metrics::{cost_at_error, error_stats, loglog_at, sh_band_rmse};
 
 /// Seed of the reference: never one a run uses.
@@ -125,11 +125,7 @@ pub fn sweep(
     pb.inc(1);
     let shared_seconds = timer.total();
     let shared_stages = timer.into_stages();
-    let validity_seconds: f64 = shared_stages
-        .iter()
-        .filter(|st| st.stage == "validity")
-        .map(|st| st.seconds)
-        .sum();
+    let validity_seconds = seconds_of(&shared_stages, "validity");
     // Texels inside geometry never reach the output (the fill replaces
     // them with their nearest valid texel's value), and the adaptive method
     // spends only its pre-pass on them: every run is compared on the others.
