@@ -171,6 +171,32 @@ impl Tracer {
         ))
     }
 
+    /// Whether anything is hit in (0, t_max], with the closest hit's
+    /// distance when it is below `depth`, else `depth` (for `depth` in
+    /// (0, t_max]): a closest-hit query that only needs exact distances up
+    /// to `depth`. One traversal: a hit found beyond `depth` is taken as a
+    /// hit at `depth`, which shortens the ray there, so the rest of the
+    /// traversal looks for closer hits only. Costs about an any-hit query
+    /// when the closest hit is far.
+    #[inline]
+    pub fn hit_depth_within(&self, origin: Vec3, dir: Vec3, t_max: f32, depth: f32) -> Option<f32> {
+        let bvh = self.bvh.as_ref()?;
+        let ray = shifted_ray(origin, dir, t_max);
+        let depth = depth.clamp(0.0, t_max);
+        let cap = depth + BOX_EPSILON_SHIFT;
+        let mut hit = RayHit::none();
+        bvh.ray_traverse(ray, &mut hit, |r, id| {
+            // A miss is infinite; a hit beyond the cap becomes one at it.
+            let t = self.tris[id].intersect(r);
+            if t.is_finite() { t.min(cap) } else { t }
+        })
+        .then_some(if hit.t >= cap {
+            depth
+        } else {
+            hit.t - BOX_EPSILON_SHIFT
+        })
+    }
+
     /// Distance to the closest hit in (0, t_max] and the unit geometric
     /// normal there (either side), if any.
     #[inline]
@@ -254,6 +280,34 @@ mod tests {
             let hit = t.closest_hit(o, d, 1.0).unwrap();
             assert!((hit - 3e-5 / d.z).abs() < 2e-6, "t = {hit}");
         }
+    }
+
+    #[test]
+    fn hit_depth_is_exact_below_the_asked_depth_and_the_depth_beyond() {
+        // Two parallel quads at 0.1 and 0.3 above the origin.
+        let mut tris = quad(0.1, 0.2);
+        tris.extend(quad(0.3, 0.2));
+        let t = Tracer::new(&tris);
+        let o = Vec3::new(0.05, -0.03, 0.0);
+        let d = Vec3::new(0.1, 0.2, 1.0).normalize();
+        let first = 0.1 / d.z;
+        assert!((t.closest_hit(o, d, 1.0).unwrap() - first).abs() < 1e-6);
+        // Below the depth: the closest hit, whatever the depth.
+        for depth in [0.2f32, 0.5, 1.0, 7.0] {
+            let h = t.hit_depth_within(o, d, 1.0, depth).unwrap();
+            assert!((h - first).abs() < 1e-6, "depth {depth}: {h}");
+        }
+        // Beyond it: exactly the depth (a hit, its distance not asked).
+        assert_eq!(t.hit_depth_within(o, d, 1.0, 0.05), Some(0.05));
+        assert_eq!(t.hit_depth_within(o, d, 1.0, 0.0), Some(0.0));
+        // Nothing within t_max: no hit, whatever the depth.
+        assert_eq!(t.hit_depth_within(o, d, 0.09, 0.05), None);
+        assert_eq!(t.hit_depth_within(o, -d, 1.0, 0.05), None);
+        // Only the far quad in range from above the near one.
+        let above = o + Vec3::new(0.0, 0.0, 0.2);
+        let h = t.hit_depth_within(above, d, 1.0, 0.5).unwrap();
+        assert!((h - 0.1 / d.z).abs() < 1e-6);
+        assert_eq!(Tracer::new(&[]).hit_depth_within(o, d, 1.0, 0.5), None);
     }
 
     #[test]

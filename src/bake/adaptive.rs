@@ -360,6 +360,31 @@ pub fn sigma_in_texels(z_min: f32, fp: f32, inside: bool, o: &AdaptiveOptions) -
     }
 }
 
+/// The occluder depth at which a receiver of footprint `fp` reaches its
+/// widest filter ([`sigma_in_texels`] at `max_reach / 2`): z_min beyond it
+/// changes nothing.
+#[inline]
+pub fn saturating_depth(fp: f32, o: &AdaptiveOptions) -> f32 {
+    fp * o.max_reach as f32 * o.mu * o.omega_h
+}
+
+/// Twice the largest [`saturating_depth`] of the atlas's footprints (one
+/// value for all, so z_min values cut at it compare equal); `max_distance`
+/// when that is not positive and finite (no filter, or no footprint).
+pub fn exact_depth(footprint: &[f32], o: &AdaptiveOptions, max_distance: f32) -> f32 {
+    let fp = footprint
+        .iter()
+        .copied()
+        .filter(|f| f.is_finite())
+        .fold(0.0f32, f32::max);
+    let d = 2.0 * saturating_depth(fp, o);
+    if d > 0.0 && d.is_finite() {
+        d.min(max_distance)
+    } else {
+        max_distance
+    }
+}
+
 /// The standard deviation of one ray's visibility from `visible` of
 /// `rays` (smoothed so that all or none visible is not certainty).
 #[inline]
@@ -368,14 +393,17 @@ pub fn visibility_sd(visible: u32, rays: u32) -> f32 {
     (p * (1.0 - p)).sqrt()
 }
 
-/// The power of two nearest `n` (in log scale) within [lo, hi].
+/// The exponent of the power of two nearest `2^log2_n` in log scale,
+/// within [lo, hi] (exponents): a ray count of `2^ray_exponent(..)`. NaN
+/// and -inf (no demand) give `lo`.
 #[inline]
-pub fn power_of_two_rays(n: f32, lo: u32, hi: u32) -> u32 {
-    if n.is_nan() || n <= lo as f32 {
-        return lo;
+pub fn ray_exponent(log2_n: f32, lo: u32, hi: u32) -> u32 {
+    let e = log2_n.round();
+    if e >= lo as f32 {
+        (e as u32).min(hi)
+    } else {
+        lo
     }
-    let k = n.log2().round().clamp(0.0, 31.0) as u32;
-    (1u32 << k).clamp(lo, hi)
 }
 
 /// How a receiver's error falls with its ray count: the variance of a
@@ -458,7 +486,7 @@ pub fn model_margin(filtered: f32, unfiltered: f32, unfiltered_margin: f64) -> f
 /// Ray counts for receivers whose one-ray variance is `unfiltered` before
 /// the filter and `filtered` after it (sd^2 / n_eff for one cell; the mean
 /// over the cells otherwise; 0: pre-pass only). Counts are
-/// power_of_two(scale x sqrt(margin) sd / sqrt(n_eff)) (the allocation
+/// power_of_two(scale x sqrt(margin) sd / sqrt(n_eff)) ([`ray_exponent`]; the allocation
 /// that minimizes the summed variance margin sd^2 / (rays^ALPHA n_eff) for
 /// a given number of rays; margin: [`model_margin`]), with the scale found
 /// by bisection: the smallest whose predicted mean variance is at most
@@ -483,13 +511,12 @@ pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOpti
             }
         })
         .collect();
-    let count = |scale: f32, d: f32| {
-        if d > 0.0 {
-            power_of_two_rays(scale * d, o.pre_rays, o.max_rays)
-        } else {
-            o.pre_rays
-        }
-    };
+    // Counts in log2: a receiver's count at scale s is the power of two
+    // nearest s d in log scale, 2^round(log2 s + log2 d) within the bounds,
+    // so the bisection below reads each log2 d once.
+    let (lo_exp, hi_exp) = (exponent_at_least(o.pre_rays), exponent_at_most(o.max_rays));
+    let log_demand: Vec<f32> = terms.iter().map(|&(d, _)| d.log2()).collect();
+    let exponent = |log_scale: f32, l: f32| ray_exponent(log_scale + l, lo_exp, hi_exp);
     // k^-ALPHA for every power of two k.
     let inv_pow: [f64; 32] = std::array::from_fn(|e| (2f64.powi(e as i32)).powf(-ALPHA));
     let goal: f64 = if o.mean_rays > 0 {
@@ -507,13 +534,14 @@ pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOpti
     };
     // Whether the counts at `scale` fall short of the goal: fewer rays than
     // the mean asks, or more predicted variance than the quality allows.
-    let short = |scale: f32| -> bool {
+    let short = |log_scale: f32| -> bool {
         let (rays, variance) = terms
             .par_iter()
+            .zip(&log_demand)
             .with_min_len(4096)
-            .map(|&(d, v)| {
-                let k = count(scale, d);
-                (k as f64, v * inv_pow[k.trailing_zeros() as usize])
+            .map(|(&(_, v), &l)| {
+                let e = exponent(log_scale, l);
+                ((1u64 << e) as f64, v * inv_pow[e as usize])
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
         if o.mean_rays > 0 {
@@ -522,19 +550,46 @@ pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOpti
             variance > goal
         }
     };
-    let (mut lo, mut hi) = (0.0f32, 1.0f32);
-    while short(hi) && hi < 1e12 {
-        hi *= 2.0;
+    // Bisection on log2 of the scale, between one where every receiver
+    // gets the fewest rays and one where every receiver gets the most,
+    // to f32's resolution.
+    let (l_min, l_max) = log_demand
+        .iter()
+        .filter(|l| l.is_finite())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &l| {
+            (a.min(l), b.max(l))
+        });
+    if l_min > l_max {
+        // No receiver asks for more than the pre-pass.
+        return vec![o.pre_rays; terms.len()];
     }
-    for _ in 0..40 {
+    let (mut lo, mut hi) = (lo_exp as f32 - 1.0 - l_max, hi_exp as f32 + 1.0 - l_min);
+    loop {
         let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi {
+            break;
+        }
         if short(mid) {
             lo = mid;
         } else {
             hi = mid;
         }
     }
-    terms.iter().map(|&(d, _)| count(hi, d)).collect()
+    let log_scale = hi;
+    log_demand
+        .iter()
+        .map(|&l| 1 << exponent(log_scale, l))
+        .collect()
+}
+
+/// The exponent of the smallest power of two at least `n` (n >= 1).
+fn exponent_at_least(n: u32) -> u32 {
+    n.max(1).next_power_of_two().trailing_zeros()
+}
+
+/// The exponent of the largest power of two at most `n` (n >= 1).
+fn exponent_at_most(n: u32) -> u32 {
+    31 - n.max(1).leading_zeros()
 }
 
 /// Receivers per parallel work item.
@@ -568,9 +623,16 @@ pub fn bake(
     // Its closest hits' faces also tell which receivers lie inside
     // geometry: the validity stage's test on the same rays (the bake's
     // sequence), so the adaptive method needs no stage of its own for it.
+    // Rays outside that test ask only for the distances z_min can use:
+    // below the cell's running z_min and below the depth where every
+    // receiver's filter is at its widest ([`exact_depth`]); deeper, a hit
+    // is only a hit. Same z_min and sums as full closest-hit queries
+    // (byte-identical output); measured on the curtains at 1024: pre-pass
+    // 1.48 -> 1.34 s, against 1.14 s with any-hit queries for those rays.
     let mut sums = vec![CellSums::default(); n * cells];
     let mut own_z = vec![f32::INFINITY; n * cells];
     let mut inside_found = vec![false; n];
+    let exact = exact_depth(&receivers.footprint, o, p.max_distance);
     sums.par_chunks_mut(CHUNK * cells)
         .zip(own_z.par_chunks_mut(CHUNK * cells))
         .zip(inside_found.par_chunks_mut(CHUNK))
@@ -592,12 +654,17 @@ pub fn bake(
                         sh::accumulate(&mut s.sh, 1.0, d);
                         continue;
                     }
-                    let hit = tracer.closest_hit_side(rays.origin, d, p.max_distance);
-                    if faces.counts(i) {
+                    // The validity test needs the closest hit's face; z_min
+                    // only distances below the running z_min and `exact`.
+                    let hit = if faces.counts(i) {
+                        let hit = tracer.closest_hit_side(rays.origin, d, p.max_distance);
                         faces.add(matches!(hit, Some((_, true))));
-                    }
+                        hit.map(|(t, _)| t)
+                    } else {
+                        tracer.hit_depth_within(rays.origin, d, p.max_distance, z.min(exact))
+                    };
                     match hit {
-                        Some((t, _)) => {
+                        Some(t) => {
                             *z = z.min(t);
                             sh::accumulate(&mut s.sh, 1.0, d);
                         }
@@ -2113,11 +2180,16 @@ mod tests {
             max_rays: 512,
             ..Default::default()
         };
-        assert_eq!(power_of_two_rays(0.0, 16, 512), 16);
-        assert_eq!(power_of_two_rays(f32::NAN, 16, 512), 16);
-        assert_eq!(power_of_two_rays(90.0, 16, 512), 64);
-        assert_eq!(power_of_two_rays(100.0, 16, 512), 128);
-        assert_eq!(power_of_two_rays(1e9, 16, 512), 512);
+        let rays = |n: f32| 1u32 << ray_exponent(n.log2(), 4, 9);
+        assert_eq!(rays(0.0), 16);
+        assert_eq!(rays(f32::NAN), 16);
+        assert_eq!(rays(-3.0), 16);
+        assert_eq!(rays(90.0), 64);
+        assert_eq!(rays(100.0), 128);
+        assert_eq!(rays(1e9), 512);
+        assert_eq!(rays(f32::INFINITY), 512);
+        assert_eq!((exponent_at_least(16), exponent_at_most(512)), (4, 9));
+        assert_eq!((exponent_at_least(20), exponent_at_most(1000)), (5, 9));
         // Half the receivers open (no demand), half with demand 1..2.
         let sd: Vec<f32> = (0..1000)
             .map(|i| {
@@ -2172,6 +2244,28 @@ mod tests {
                 .iter()
                 .all(|&c| c == 16)
         );
+    }
+
+    #[test]
+    fn z_min_is_exact_to_twice_the_widest_footprints_saturating_depth() {
+        let o = AdaptiveOptions::default();
+        // sigma_in_texels reaches max_reach / 2 at the saturating depth.
+        let fp = 0.01f32;
+        let z = saturating_depth(fp, &o);
+        assert!((sigma_in_texels(z, fp, false, &o) - o.max_reach as f32 / 2.0).abs() < 1e-4);
+        assert!(sigma_in_texels(0.9 * z, fp, false, &o) < o.max_reach as f32 / 2.0);
+        // The widest finite footprint sets it; never beyond max_distance.
+        let d = exact_depth(&[0.005, fp, f32::NAN, f32::INFINITY], &o, 10.0);
+        assert!((d - 2.0 * z).abs() < 1e-6);
+        assert_eq!(exact_depth(&[fp], &o, 0.1), 0.1);
+        // Nothing to gain: no receivers, no filter, zero footprints.
+        assert_eq!(exact_depth(&[], &o, 0.5), 0.5);
+        assert_eq!(exact_depth(&[0.0], &o, 0.5), 0.5);
+        let unfiltered = AdaptiveOptions {
+            max_reach: 0,
+            ..Default::default()
+        };
+        assert_eq!(exact_depth(&[fp], &unfiltered, 0.5), 0.5);
     }
 
     #[test]
