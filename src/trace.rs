@@ -115,6 +115,13 @@ impl Tracer {
         }
     }
 
+    /// Whether any occluder triangle is single-sided: without one, no
+    /// closest hit is ever a back face ([`Tracer::back_face_hit`]), so the
+    /// validity test has nothing to find.
+    pub fn has_single_sided(&self) -> bool {
+        self.single_sided.iter().any(|&s| s)
+    }
+
     /// Number of occluder triangles.
     pub fn triangle_count(&self) -> usize {
         self.tris.len()
@@ -308,6 +315,15 @@ mod tests {
         let h = t.hit_depth_within(above, d, 1.0, 0.5).unwrap();
         assert!((h - 0.1 / d.z).abs() < 1e-6);
         assert_eq!(Tracer::new(&[]).hit_depth_within(o, d, 1.0, 0.5), None);
+    }
+
+    #[test]
+    fn knows_whether_any_triangle_is_single_sided() {
+        let tris = quad(0.1, 0.2);
+        assert!(!Tracer::new(&tris).has_single_sided());
+        assert!(!Tracer::with_sides(&tris, &[false, false]).has_single_sided());
+        assert!(Tracer::with_sides(&tris, &[false, true]).has_single_sided());
+        assert!(!Tracer::with_sides(&[], &[true]).has_single_sided());
     }
 
     #[test]

@@ -633,6 +633,8 @@ pub fn bake(
     let mut own_z = vec![f32::INFINITY; n * cells];
     let mut inside_found = vec![false; n];
     let exact = exact_depth(&receivers.footprint, o, p.max_distance);
+    // Without single-sided triangles no receiver is inside: no face to test.
+    let test_faces = fill_inside && tracer.has_single_sided();
     sums.par_chunks_mut(CHUNK * cells)
         .zip(own_z.par_chunks_mut(CHUNK * cells))
         .zip(inside_found.par_chunks_mut(CHUNK))
@@ -656,7 +658,7 @@ pub fn bake(
                     }
                     // The validity test needs the closest hit's face; z_min
                     // only distances below the running z_min and `exact`.
-                    let hit = if faces.counts(i) {
+                    let hit = if test_faces && faces.counts(i) {
                         let hit = tracer.closest_hit_side(rays.origin, d, p.max_distance);
                         faces.add(matches!(hit, Some((_, true))));
                         hit.map(|(t, _)| t)
@@ -671,7 +673,7 @@ pub fn bake(
                         None => s.visible += 1,
                     }
                 }
-                *inside = fill_inside
+                *inside = test_faces
                     && validity::finish_inside(&rays, tracer, p.max_distance, o.pre_rays, faces);
             }
         });

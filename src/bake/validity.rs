@@ -14,7 +14,8 @@
 //! adaptive method's pre-pass, which casts the same closest-hit rays,
 //! finds the same receivers inside without this stage: see
 //! [`BackFaces`]); after the first [`VALIDITY_PROBE`] a receiver that saw
-//! no back face stops, so texels in the open cost a few rays.
+//! no back face stops, so texels in the open cost a few rays. A scene
+//! without single-sided triangles has no back faces to find and casts none.
 
 use super::ReceiverRays;
 use crate::atlas::Receivers;
@@ -70,6 +71,9 @@ pub fn inside_geometry(
     max_distance: f32,
     seed: u64,
 ) -> Vec<bool> {
+    if !tracer.has_single_sided() {
+        return vec![false; receivers.len()];
+    }
     (0..receivers.len())
         .into_par_iter()
         .with_min_len(256)
