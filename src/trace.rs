@@ -147,14 +147,46 @@ impl Tracer {
     }
 
     /// The closest hit in (0, t_max]: its distance from `origin` and the
-    /// triangle's index. The one traversal the closest-hit queries share.
+    /// triangle's index.
     #[inline]
     fn closest(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, usize)> {
+        self.closest_within(origin, dir, t_max, t_max)
+    }
+
+    /// The one traversal the closest-hit queries share: the closest hit in
+    /// (0, t_max] as (distance, triangle index), its distance exact below
+    /// `depth` and `depth` beyond (then the index is of the hit that cut
+    /// the ray there). A hit found beyond `depth` is taken as a hit at
+    /// `depth`, which shortens the ray there, so the rest of the traversal
+    /// looks for closer hits only. At `depth = t_max` nothing is cut: the
+    /// ray ends there anyway.
+    #[inline]
+    fn closest_within(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+        depth: f32,
+    ) -> Option<(f32, usize)> {
         let bvh = self.bvh.as_ref()?;
         let ray = shifted_ray(origin, dir, t_max);
+        // (min/max, not clamp: no panic on a NaN or negative t_max.)
+        let depth = depth.min(t_max).max(0.0);
+        let cap = depth + BOX_EPSILON_SHIFT;
         let mut hit = RayHit::none();
-        bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
-            .then_some((hit.t - BOX_EPSILON_SHIFT, hit.primitive_id as usize))
+        bvh.ray_traverse(ray, &mut hit, |r, id| {
+            // A miss is infinite; a hit beyond the cap becomes one at it.
+            let t = self.tris[id].intersect(r);
+            if t.is_finite() { t.min(cap) } else { t }
+        })
+        .then(|| {
+            let t = if hit.t >= cap {
+                depth
+            } else {
+                hit.t - BOX_EPSILON_SHIFT
+            };
+            (t, hit.primitive_id as usize)
+        })
     }
 
     /// Whether the closest hit in (0, t_max] is the back face of a
@@ -180,28 +212,13 @@ impl Tracer {
 
     /// Whether anything is hit in (0, t_max], with the closest hit's
     /// distance when it is below `depth`, else `depth` (for `depth` in
-    /// (0, t_max]): a closest-hit query that only needs exact distances up
-    /// to `depth`. One traversal: a hit found beyond `depth` is taken as a
-    /// hit at `depth`, which shortens the ray there, so the rest of the
-    /// traversal looks for closer hits only. Costs about an any-hit query
-    /// when the closest hit is far.
+    /// [0, t_max]): a closest-hit query that only needs exact distances up
+    /// to `depth`, at about an any-hit query's cost when the closest hit
+    /// is far (one traversal, which a hit beyond `depth` cuts there).
     #[inline]
     pub fn hit_depth_within(&self, origin: Vec3, dir: Vec3, t_max: f32, depth: f32) -> Option<f32> {
-        let bvh = self.bvh.as_ref()?;
-        let ray = shifted_ray(origin, dir, t_max);
-        let depth = depth.clamp(0.0, t_max);
-        let cap = depth + BOX_EPSILON_SHIFT;
-        let mut hit = RayHit::none();
-        bvh.ray_traverse(ray, &mut hit, |r, id| {
-            // A miss is infinite; a hit beyond the cap becomes one at it.
-            let t = self.tris[id].intersect(r);
-            if t.is_finite() { t.min(cap) } else { t }
-        })
-        .then_some(if hit.t >= cap {
-            depth
-        } else {
-            hit.t - BOX_EPSILON_SHIFT
-        })
+        self.closest_within(origin, dir, t_max, depth)
+            .map(|(t, _)| t)
     }
 
     /// Distance to the closest hit in (0, t_max] and the unit geometric
