@@ -420,6 +420,8 @@ pub fn prepare(scene: &Scene, s: &Settings, timer: &mut StageTimer) -> Result<Pr
             "no texel is covered: every baked triangle is degenerate".into(),
         ));
     }
+    // For the tracing passes' caches ([`atlas::order`]); no output changes.
+    let receivers = atlas::order::in_world_order(receivers);
     timer.lap("rasterize");
     let tracer = Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
     timer.lap("bvh");

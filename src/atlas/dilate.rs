@@ -4,8 +4,9 @@
 //! In: atlas size and the covered texels. Out: for every texel of the image,
 //! the receiver whose value it shows (itself where covered), found by a
 //! multi-source breadth-first search over 8-connected texels (nearest in
-//! Chebyshev distance; ties go to the receiver reached first, in texel order,
-//! so the result is deterministic).
+//! Chebyshev distance; ties go to the receiver reached first from sources
+//! taken in texel order, whatever the receivers' order, so the result is
+//! deterministic).
 
 use std::collections::VecDeque;
 
@@ -19,8 +20,9 @@ pub fn nearest_receiver(width: u32, height: u32, receiver_texels: &[u32]) -> Vec
     let mut queue = VecDeque::with_capacity(receiver_texels.len());
     for (r, &t) in receiver_texels.iter().enumerate() {
         owner[t as usize] = r as u32;
-        queue.push_back(t as usize);
     }
+    // Sources in texel order whatever the receivers' order.
+    queue.extend((0..w * h).filter(|&t| owner[t] != NONE));
     while let Some(t) = queue.pop_front() {
         let (x, y) = ((t % w) as isize, (t / w) as isize);
         for (dx, dy) in [
@@ -86,5 +88,13 @@ mod tests {
         let o = nearest_receiver(3, 3, &[4]);
         assert!(o.iter().all(|&r| r == 0));
         assert!(nearest_receiver(2, 2, &[]).iter().all(|&r| r == NONE));
+    }
+
+    #[test]
+    fn ties_go_to_the_first_source_in_texel_order_whatever_the_receivers_order() {
+        // Texel 2 is as near x = 0 as x = 4: it shows the receiver at x = 0
+        // whether that is listed first or second.
+        assert_eq!(nearest_receiver(5, 1, &[0, 4]), vec![0, 0, 0, 1, 1]);
+        assert_eq!(nearest_receiver(5, 1, &[4, 0]), vec![1, 1, 1, 0, 0]);
     }
 }

@@ -10,9 +10,12 @@
 //!   existing UV set;
 //! - [`rasterize`](mod@rasterize): covered texels into receivers,
 //!   conservative at chart edges;
+//! - [`order`]: the receivers in world-space Morton order, for the tracing
+//!   passes' caches;
 //! - [`dilate`]: every texel's nearest valid receiver.
 
 pub mod dilate;
+pub mod order;
 pub mod rasterize;
 pub mod unwrap;
 

@@ -20,7 +20,9 @@ const CONSERVATIVE_REACH: f32 = std::f32::consts::FRAC_1_SQRT_2 + 1e-4;
 /// Rows per band of the binned rasterizer.
 const BAND_ROWS: u32 = 8;
 
-/// Receiver points, one per covered texel (structure of arrays).
+/// Receiver points, one per covered texel (structure of arrays), in any
+/// order: every stage finds a receiver's texel through `texel` (the
+/// pipeline puts them in [`super::order`]'s world order).
 #[derive(Clone, Debug, Default)]
 pub struct Receivers {
     pub width: u32,
@@ -57,6 +59,21 @@ impl Receivers {
     }
     pub fn is_empty(&self) -> bool {
         self.texel.is_empty()
+    }
+
+    /// The receivers in `order` (`order[new] = old`, a permutation).
+    pub fn permuted(&self, order: &[u32]) -> Receivers {
+        fn pick<T: Copy>(v: &[T], order: &[u32]) -> Vec<T> {
+            order.iter().map(|&i| v[i as usize]).collect()
+        }
+        Receivers {
+            texel: pick(&self.texel, order),
+            position: pick(&self.position, order),
+            normal: pick(&self.normal, order),
+            geo_normal: pick(&self.geo_normal, order),
+            footprint: pick(&self.footprint, order),
+            ..self.clone_header()
+        }
     }
 }
 

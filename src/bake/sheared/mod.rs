@@ -87,7 +87,7 @@ mod receiver;
 mod types;
 
 pub use geometry::*;
-pub use order::{locality_order, permuted, unpermuted};
+pub use order::{locality_order, unpermuted};
 pub use passes::{filter_pass, sparse_pass, sparse_t_max};
 pub use receiver::{MIN_CELL_SAMPLES, MIN_DEPTH_HITS, cell_estimates};
 pub use types::{FilterStats, MAX_FILTER_RAYS, MAX_GATHER_RADIUS, Samples, ShearedOptions};
@@ -112,7 +112,7 @@ pub fn bake(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Bake, FilterStats)> {
     let order = locality_order(receivers);
-    let local = permuted(receivers, &order);
+    let local = receivers.permuted(&order);
     let samples = sparse_pass(&local, tracer, s, p);
     timer.lap("sparse pass");
     let (bake, stats) = filter_pass(&local, &samples, tracer, s, p, progress)?;

@@ -1,8 +1,8 @@
 //! Locality: the receivers in Morton order of their texels for the
 //! passes, and the results back in the receivers' own order.
 //!
-//! In: [`Receivers`]. Out: an order (`order[new] = old`), the permuted
-//! receivers, and a [`Bake`] and [`FilterStats`] unpermuted.
+//! In: [`Receivers`]. Out: an order (`order[new] = old`) for
+//! [`Receivers::permuted`], and a [`Bake`] and [`FilterStats`] unpermuted.
 
 use super::types::FilterStats;
 use crate::atlas::Receivers;
@@ -28,22 +28,6 @@ pub fn locality_order(receivers: &Receivers) -> Vec<u32> {
         spread(t % w) | (spread(t / w) << 1)
     });
     order
-}
-
-/// The receivers in `order` (`order[new] = old`).
-pub fn permuted(receivers: &Receivers, order: &[u32]) -> Receivers {
-    let pick = |i: &u32| *i as usize;
-    Receivers {
-        texel: order.iter().map(|i| receivers.texel[pick(i)]).collect(),
-        position: order.iter().map(|i| receivers.position[pick(i)]).collect(),
-        normal: order.iter().map(|i| receivers.normal[pick(i)]).collect(),
-        geo_normal: order
-            .iter()
-            .map(|i| receivers.geo_normal[pick(i)])
-            .collect(),
-        footprint: order.iter().map(|i| receivers.footprint[pick(i)]).collect(),
-        ..receivers.clone_header()
-    }
 }
 
 /// A bake and its per-receiver statistics, from `order` back to the
@@ -97,7 +81,7 @@ mod tests {
         sorted.sort();
         assert_eq!(sorted, (0..14).collect::<Vec<u32>>());
         // Z order: (0,0) (1,0) (0,1) (1,1) (2,0) ...: texels 0 1 4 (5 missing) 2 3 6 7.
-        let local = permuted(&receivers, &order);
+        let local = receivers.permuted(&order);
         assert_eq!(&local.texel[..7], &[0, 1, 4, 2, 3, 6, 7]);
         assert_eq!(local.footprint[2], 4.0);
         assert_eq!((local.width, local.height), (4, 4));
