@@ -27,7 +27,10 @@ fn cached_reference(
 ) -> (aobake::pipeline::Prepared, Vec<f32>, Vec<[f32; 9]>) {
     let (s, p) = common::prepare_for_reference(path, res, refs);
     let name = path.file_stem().unwrap().to_string_lossy();
-    let cache = std::env::temp_dir().join(format!("aobake-ref-{name}-{res}-{refs}.bin"));
+    let cache = std::env::temp_dir().join(format!(
+        "aobake-ref-{name}-{res}-{refs}-{:016x}.bin",
+        common::order_key(&p.receivers)
+    ));
     let n = p.receivers.len();
     if let Ok(b) = std::fs::read(&cache)
         && b.len() == n * 40

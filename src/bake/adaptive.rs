@@ -201,8 +201,8 @@ impl AdaptiveOptions {
     /// and below counts, occluded and all rays' SH sums), own z_min (4 B per cell),
     /// the texel map (4 B) and the bounds' working arrays (spread and
     /// filter z_min, sigma, supports, sd twice, N_eff and its row sums,
-    /// the widest filter's per-reach minimum, the allocation's terms and
-    /// counts: about 64 B). The filter's row pass: ray counts (4 B), z_min
+    /// the allocation's terms and counts: about 64 B; the widest filter's
+    /// row minima, 4 B per texel of `max_reach`). The filter's row pass: ray counts (4 B), z_min
     /// and sigma (8 B per cell), the texel map (4 B), the filter's input
     /// (AO and SH: 40 B) and its row pass (44 B); with more than one cell
     /// the cells' running sums are held through it. With `cross_charts`,
@@ -216,7 +216,7 @@ impl AdaptiveOptions {
         } else {
             0
         };
-        let bounds = sums + 4 * cells + 4 + 64 + world;
+        let bounds = sums + 4 * cells + 4 + 64 + 4 * self.max_reach as u64 + world;
         let held = if cells > 1 { sums } else { 0 };
         let filter = 4 + 8 * cells + 4 + 40 + 44 + held + world + world / 5;
         bounds.max(filter)
@@ -1220,20 +1220,79 @@ fn widest_filters(
     width: impl Fn(f32, usize) -> f32 + Sync,
 ) -> (Vec<f32>, Vec<f32>) {
     let n = receivers.len();
-    let mut best: Vec<(f32, f32)> = (0..n).map(|r| (own[r], 0.0)).collect();
-    for k in 1..=o.max_reach {
-        let m = spread_min(receivers, grid, inside, cells, own, &vec![k; n]);
-        best.par_iter_mut()
-            .enumerate()
-            .with_min_len(4096)
-            .for_each(|(r, b)| {
-                let s = width(m[r], r).min(k as f32 / 2.0);
-                if s >= 0.5 && s > b.1 {
-                    *b = (m[r], s);
+    let reach = o.max_reach as usize;
+    if reach == 0 {
+        return (own.to_vec(), vec![0.0; n]);
+    }
+    // Every reach in one walk per pass (the minimum within k texels is the
+    // running minimum of the offsets up to k): rows, then columns of the
+    // rows' minima, as [`spread_min`] at reach k would take them, reading
+    // each neighbour once instead of once per k.
+    // Per receiver j and reach k: the minimum over its row within k.
+    let mut rows = vec![f32::INFINITY; n * reach];
+    rows.par_chunks_mut(reach)
+        .enumerate()
+        .with_min_len(256)
+        .for_each(|(r, m)| {
+            along_line(receivers, grid, inside, cells, r, reach, false, |j, d| {
+                for m in &mut m[d.max(1) - 1..] {
+                    *m = m.min(own[j]);
+                }
+            })
+        });
+    (0..n)
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|r| {
+            let mut m = [f32::INFINITY; MAX_REACH as usize];
+            let m = &mut m[..reach];
+            along_line(receivers, grid, inside, cells, r, reach, true, |j, d| {
+                for (m, &row) in m[d.max(1) - 1..]
+                    .iter_mut()
+                    .zip(&rows[j * reach..][d.max(1) - 1..reach])
+                {
+                    *m = m.min(row);
                 }
             });
+            let mut best = (own[r], 0.0f32);
+            for (k, &z) in (1..).zip(m.iter()) {
+                let s = width(z, r).min(k as f32 / 2.0);
+                if s >= 0.5 && s > best.1 {
+                    best = (z, s);
+                }
+            }
+            best
+        })
+        .unzip()
+}
+
+/// Calls `f(j, d)` for every receiver j at most `reach` texels (d of them)
+/// from receiver `r` along its row (`vertical` false) or column that is
+/// compatible with it as [`separable`] takes them: itself, or outside
+/// geometry with a normal within [`SPREAD_AGREEMENT`] and agreeing cells.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn along_line(
+    receivers: &Receivers,
+    grid: &TexelGrid,
+    inside: &[bool],
+    cells: usize,
+    r: usize,
+    reach: usize,
+    vertical: bool,
+    mut f: impl FnMut(usize, usize),
+) {
+    let n = receivers.normal[r];
+    let tangent = cell_tangent(cells, n);
+    for k in -(reach as isize)..=reach as isize {
+        let Some(j) = grid.offset(receivers, r, k, vertical) else {
+            continue;
+        };
+        let nj = receivers.normal[j];
+        if j == r || (!inside[j] && nj.dot(n) >= SPREAD_AGREEMENT && cells_agree(tangent, nj)) {
+            f(j, k.unsigned_abs());
+        }
     }
-    best.into_iter().unzip()
 }
 
 /// The number of compatible receivers within `reach` texels of each

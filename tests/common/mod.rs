@@ -250,3 +250,14 @@ pub fn shared_scene(name: &str) -> Option<aobake::gltf::Scene> {
     }
     Some(aobake::gltf::load(&path).unwrap())
 }
+
+/// A key of the receivers' order (FNV-1a over their texels), for caches
+/// of per-receiver results: a cache written in another order is not read.
+pub fn order_key(receivers: &aobake::atlas::Receivers) -> u64 {
+    receivers
+        .texel
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, &t| {
+            (h ^ t as u64).wrapping_mul(0x0100_0000_01b3)
+        })
+}
