@@ -1184,13 +1184,7 @@ fn separable(
                 let tangent = cell_tangent(cells, n);
                 let (acc, count) = grid
                     .line(receivers, r, reach[r] as usize, vertical)
-                    .filter(|&j| {
-                        let nj = receivers.normal[j];
-                        j == r
-                            || (!inside[j]
-                                && nj.dot(n) >= SPREAD_AGREEMENT
-                                && cells_agree(tangent, nj))
-                    })
+                    .filter(|&j| spreads_to(receivers, inside, r, n, tangent, j))
                     .fold((init, 0u32), |(a, c), j| (fold(a, src[j]), c + 1));
                 finish(acc, count)
             })
@@ -1267,9 +1261,9 @@ fn widest_filters(
 }
 
 /// Calls `f(j, d)` for every receiver j at most `reach` texels (d of them)
-/// from receiver `r` along its row (`vertical` false) or column that is
-/// compatible with it as [`separable`] takes them: itself, or outside
-/// geometry with a normal within [`SPREAD_AGREEMENT`] and agreeing cells.
+/// from receiver `r` along its row (`vertical` false) or column that
+/// counts in its neighbourhood ([`spreads_to`], as [`separable`] takes
+/// them).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn along_line(
@@ -1288,11 +1282,26 @@ fn along_line(
         let Some(j) = grid.offset(receivers, r, k, vertical) else {
             continue;
         };
-        let nj = receivers.normal[j];
-        if j == r || (!inside[j] && nj.dot(n) >= SPREAD_AGREEMENT && cells_agree(tangent, nj)) {
+        if spreads_to(receivers, inside, r, n, tangent, j) {
             f(j, k.unsigned_abs());
         }
     }
+}
+
+/// Whether receiver `j` counts in receiver `r`'s neighbourhood (normal
+/// `n`, cell tangent `tangent`) for the bounds: itself, or outside
+/// geometry with a normal within [`SPREAD_AGREEMENT`] and agreeing cells.
+#[inline]
+fn spreads_to(
+    receivers: &Receivers,
+    inside: &[bool],
+    r: usize,
+    n: Vec3,
+    tangent: Option<Vec3>,
+    j: usize,
+) -> bool {
+    let nj = receivers.normal[j];
+    j == r || (!inside[j] && nj.dot(n) >= SPREAD_AGREEMENT && cells_agree(tangent, nj))
 }
 
 /// The number of compatible receivers within `reach` texels of each
