@@ -202,9 +202,10 @@ impl AdaptiveOptions {
     /// the texel map (4 B) and the bounds' working arrays (spread and
     /// filter z_min, sigma, supports, sd twice, N_eff and its row sums,
     /// the allocation's terms and counts: about 64 B; the widest filter's
-    /// row minima, 4 B per texel of `max_reach`). The filter's row pass: ray counts (4 B), z_min
-    /// and sigma (8 B per cell), the texel map (4 B), the filter's input
-    /// (AO and SH: 40 B) and its row pass (44 B); with more than one cell
+    /// row minima, 4 B per texel of `max_reach`). The filter's row pass:
+    /// ray counts (4 B), z_min and sigma (8 B per cell), the texel map
+    /// (4 B), the filter's input (AO and SH: 40 B) and its row pass (44 B);
+    /// with more than one cell
     /// the cells' running sums are held through it. With `cross_charts`,
     /// the k-d tree of the positions (about 20 B: point, index and its
     /// share of the nodes) through both, and own z_min through the filter.
@@ -1129,7 +1130,7 @@ impl TexelGrid {
     }
 
     /// Receivers within `reach` texels of receiver `r`'s texel along a row
-    /// (`vertical` false) or a column.
+    /// (`vertical` false) or a column, each with its distance in texels.
     #[inline]
     fn line(
         &self,
@@ -1137,7 +1138,7 @@ impl TexelGrid {
         r: usize,
         reach: usize,
         vertical: bool,
-    ) -> impl Iterator<Item = usize> + '_ {
+    ) -> impl Iterator<Item = (usize, usize)> + '_ {
         let t = receivers.texel[r] as usize;
         let (x, y) = (t % self.width, t / self.width);
         let (pos, len) = if vertical {
@@ -1154,7 +1155,7 @@ impl TexelGrid {
                 y * self.width + k
             };
             let j = self.receiver[texel];
-            (j != NO_RECEIVER).then_some(j as usize)
+            (j != NO_RECEIVER).then_some((j as usize, k.abs_diff(pos)))
         })
     }
 }
@@ -1184,8 +1185,8 @@ fn separable(
                 let tangent = cell_tangent(cells, n);
                 let (acc, count) = grid
                     .line(receivers, r, reach[r] as usize, vertical)
-                    .filter(|&j| spreads_to(receivers, inside, r, n, tangent, j))
-                    .fold((init, 0u32), |(a, c), j| (fold(a, src[j]), c + 1));
+                    .filter(|&(j, _)| spreads_to(receivers, inside, r, n, tangent, j))
+                    .fold((init, 0u32), |(a, c), (j, _)| (fold(a, src[j]), c + 1));
                 finish(acc, count)
             })
             .collect()
@@ -1241,10 +1242,9 @@ fn widest_filters(
             let mut m = [f32::INFINITY; MAX_REACH as usize];
             let m = &mut m[..reach];
             along_line(receivers, grid, inside, cells, r, reach, true, |j, d| {
-                for (m, &row) in m[d.max(1) - 1..]
-                    .iter_mut()
-                    .zip(&rows[j * reach..][d.max(1) - 1..reach])
-                {
+                // Reaches d and up (the receiver itself: all of them).
+                let from = d.max(1) - 1;
+                for (m, &row) in m[from..].iter_mut().zip(&rows[j * reach + from..]) {
                     *m = m.min(row);
                 }
             });
@@ -1278,12 +1278,9 @@ fn along_line(
 ) {
     let n = receivers.normal[r];
     let tangent = cell_tangent(cells, n);
-    for k in -(reach as isize)..=reach as isize {
-        let Some(j) = grid.offset(receivers, r, k, vertical) else {
-            continue;
-        };
+    for (j, d) in grid.line(receivers, r, reach, vertical) {
         if spreads_to(receivers, inside, r, n, tangent, j) {
-            f(j, k.unsigned_abs());
+            f(j, d);
         }
     }
 }
