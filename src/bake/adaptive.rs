@@ -200,9 +200,10 @@ impl AdaptiveOptions {
     /// Bytes per atlas texel beyond what every method holds (its results,
     /// AO and SH, which the filter's column pass writes), at the larger of
     /// two peaks. The bounds: the running sums (80 B per cell: visible
-    /// and below counts, occluded and all rays' SH sums), own z_min (4 B per cell),
-    /// the pre-pass strata's crossings (2 B), the texel map (4 B) and the bounds' working arrays (spread and
-    /// filter z_min, sigma, supports, sd twice, N_eff and its row sums,
+    /// and below counts, occluded and all rays' SH sums), own z_min (4 B
+    /// per cell), the pre-pass strata's crossings (2 B), the texel map
+    /// (4 B) and the bounds' working arrays (spread and filter z_min,
+    /// sigma, supports, sd twice, N_eff and its row sums,
     /// the allocation's terms and counts: about 64 B; the widest filter's
     /// row minima, 4 B per texel of `max_reach`). The filter's row pass:
     /// ray counts (4 B), z_min and sigma (8 B per cell), the texel map
@@ -452,6 +453,13 @@ impl Strata {
         (self.cols - 1) * self.rows + self.cols * (self.rows - 1)
     }
 
+    /// The crossings of a straight boundary halving the square: `rows`
+    /// along a column, `cols` along a row, their geometric mean (4 of the
+    /// 4x4 grid's 24 pairs).
+    pub fn halving(&self) -> f32 {
+        ((self.cols * self.rows) as f32).sqrt()
+    }
+
     /// Pairs of edge-sharing strata whose rays disagree (one occluded, one
     /// not), from the occluded strata's bits (`occluded[i / 64] >> i % 64`).
     pub fn crossings(&self, occluded: &[u64; STRATA_WORDS]) -> u32 {
@@ -478,16 +486,19 @@ impl Strata {
 /// boundary cuts (about its length times sqrt(rays), each adding at most
 /// 1/4), not from the visible share p alone, so a half-occluded receiver
 /// beside a straight wall is quieter than one under a lattice with the
-/// same p. Scaled so that a straight boundary halving the square (4 of
-/// the 4x4 grid's 24 pairs) is p(1 - p) at 1/2; half a crossing added, so
-/// a receiver whose rays all agree keeps the variance of an unseen
-/// boundary.
+/// same p. Scaled so that a straight boundary halving the square
+/// ([`Strata::halving`]) is p(1 - p) at 1/2, for any grid; half a crossing
+/// added, so a receiver whose rays all agree keeps the variance of an
+/// unseen boundary. No grid (one ray): 1/4.
 #[inline]
-pub fn boundary_variance(crossings: u32, pairs: u32) -> f32 {
+pub fn boundary_variance(crossings: u32, strata: Strata) -> f32 {
+    let pairs = strata.pairs();
     if pairs == 0 {
         return 0.25;
     }
-    (crossings as f32 + 0.5) / pairs as f32 * (0.25 * 24.0 / 4.5)
+    // (crossings + 1/2) / (halving + 1/2) / 4, as a share of the pairs.
+    let scale = 0.25 * pairs as f32 / (strata.halving() + 0.5);
+    (crossings as f32 + 0.5) / pairs as f32 * scale
 }
 
 /// The spread that sets a receiver's ray count: the geometric mean of the
@@ -507,8 +518,8 @@ pub fn boundary_variance(crossings: u32, pairs: u32) -> f32 {
 /// metric on all five (curtains p99 0.02148, equal) for 1-4% fewer rays
 /// than the binomial sd.
 #[inline]
-pub fn stratified_sd(visible: u32, rays: u32, crossings: u32, pairs: u32) -> f32 {
-    (boundary_variance(crossings, pairs).sqrt() * visibility_sd(visible, rays)).sqrt()
+pub fn stratified_sd(visible: u32, rays: u32, crossings: u32, strata: Strata) -> f32 {
+    (boundary_variance(crossings, strata).sqrt() * visibility_sd(visible, rays)).sqrt()
 }
 
 /// The exponent of the power of two nearest `2^log2_n` in log scale,
@@ -878,7 +889,7 @@ pub fn bake(
                 .map(|r| {
                     let visible = sums[r * cells + cell].visible;
                     if cells == 1 {
-                        stratified_sd(visible, cell_rays, crossings[r] as u32, strata.pairs())
+                        stratified_sd(visible, cell_rays, crossings[r] as u32, strata)
                     } else {
                         visibility_sd(visible, cell_rays)
                     }
@@ -2609,7 +2620,7 @@ mod tests {
                         b[k / 64] |= 1 << (k % 64);
                     }
                 }
-                predicted += boundary_variance(strata.crossings(&b), strata.pairs()) as f64;
+                predicted += boundary_variance(strata.crossings(&b), strata) as f64;
                 let occluded = (0..256)
                     .filter(|&i| f(crate::sample::sobol_2d(i, seed)))
                     .count();
@@ -2630,24 +2641,34 @@ mod tests {
 
     #[test]
     fn stratified_sd_lies_between_its_two_models() {
-        let pairs = Strata::of(16).pairs();
+        let strata = Strata::of(16);
         for visible in [0, 1, 8, 15, 16] {
             for crossings in [0, 4, 12, 24] {
-                let s = stratified_sd(visible, 16, crossings, pairs);
+                let s = stratified_sd(visible, 16, crossings, strata);
                 let a = visibility_sd(visible, 16);
-                let b = boundary_variance(crossings, pairs).sqrt();
+                let b = boundary_variance(crossings, strata).sqrt();
                 assert!(s.is_finite() && s > 0.0);
                 assert!(s >= a.min(b) * 0.9999 && s <= a.max(b) * 1.0001);
             }
         }
         // A straight wall halving the square: the calibration point, where
         // both models agree.
-        let half = stratified_sd(8, 16, 4, pairs);
+        let half = stratified_sd(8, 16, 4, strata);
         assert!((half - visibility_sd(8, 16)).abs() < 0.02, "{half}");
         // At equal visible share, more crossings ask for more rays.
-        assert!(stratified_sd(8, 16, 20, pairs) > 1.3 * stratified_sd(8, 16, 2, pairs));
+        assert!(stratified_sd(8, 16, 20, strata) > 1.3 * stratified_sd(8, 16, 2, strata));
+        // The calibration holds on every grid: a straight halving is 1/4,
+        // along rows or columns (between them where the grid is 2:1).
+        for pre in [16u32, 64, 256] {
+            let strata = Strata::of(pre);
+            let v = boundary_variance(strata.rows, strata);
+            assert!((v - 0.25).abs() < 1e-6, "{pre}: {v}");
+        }
+        let strata = Strata::of(32);
+        assert!(boundary_variance(strata.rows, strata) < 0.25);
+        assert!(boundary_variance(strata.cols, strata) > 0.25);
         // No grid (one pre-pass ray): the largest boundary variance.
-        assert!(stratified_sd(1, 1, 0, 0).is_finite());
+        assert!(stratified_sd(1, 1, 0, Strata::of(1)).is_finite());
     }
 
     #[test]
