@@ -94,12 +94,6 @@ fn main() {
         if let Ok(v) = std::env::var("AOBAKE_PRE") {
             s.adaptive.pre_rays = v.parse().unwrap();
         }
-        if let Ok(v) = std::env::var("AOBAKE_CROSS") {
-            s.adaptive.cross_charts = v != "0";
-        }
-        if let Ok(v) = std::env::var("AOBAKE_CELLS") {
-            s.adaptive.cells = v.parse().unwrap();
-        }
         let t = Instant::now();
         let out = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).unwrap();
         let secs = t.elapsed().as_secs_f64();

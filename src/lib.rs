@@ -5,7 +5,7 @@
 //!
 //! | stage | module | in -> out |
 //! |---|---|---|
-//! | load | [`gltf`] | a `.glb`/`.gltf` -> [`gltf::Scene`], then bake-space geometry |
+//! | load | [`gltf`] | a `.glb`/`.gltf` -> [`gltf::Scene`], then [`geometry::BakeGeometry`] |
 //! | atlas | [`atlas`] | receiver meshes -> [`atlas::Atlas`] and [`atlas::Receivers`] |
 //! | trace | [`trace`] | occluder triangles -> a BVH ([`trace::Tracer`]) |
 //! | bake | [`bake`] | receivers + tracer -> [`bake::Bake`] (AO and SH per receiver) |
@@ -14,7 +14,8 @@
 //! | report | [`report`] | a scene -> error against time for each method |
 //! | view | [`view`] | a baked GLB -> the relighting viewer on 127.0.0.1 |
 //!
-//! Beneath them, used by the stages and using none: [`sample`] (Sobol
+//! Beneath them, used by the stages and using none: [`geometry`] (the
+//! bake-space scene the atlas reads, no glTF syntax), [`sample`] (Sobol
 //! points, cells, frames), [`sh`] (the SH basis), [`stage`] (timer and
 //! progress bars), [`file`] (atomic writes), [`error`]. [`settings`] is
 //! what a bake is told. See the README for the output format.
@@ -24,6 +25,7 @@ pub mod bake;
 pub mod encode;
 pub mod error;
 pub mod file;
+pub mod geometry;
 pub mod gltf;
 pub mod pipeline;
 pub mod report;

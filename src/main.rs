@@ -139,12 +139,6 @@ struct Cli {
     /// Adaptive, expert: a fixed mean rays per texel over the atlas instead of --quality.
     #[arg(long)]
     mean_rays: Option<u32>,
-    /// Adaptive, expert: hemisphere cells with bounds and a filter of their own (1 or 4).
-    #[arg(long, default_value_t = DEFAULTS.adaptive.cells)]
-    cells: u32,
-    /// Adaptive, expert: texels whose filter reaches a chart border gather neighbours in world space, across charts (off by default: even or worse on four of five measured scenes).
-    #[arg(long)]
-    cross_charts: bool,
     /// Filtered: write diagnostic PNG maps (brute-force fraction, z_min, neighbours, sparse AO) here.
     #[arg(long)]
     debug_dir: Option<PathBuf>,
@@ -354,8 +348,6 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         adaptive: aobake::bake::adaptive::AdaptiveOptions {
             quality: cli.quality,
             mean_rays: cli.mean_rays.unwrap_or(0),
-            cells: cli.cells,
-            cross_charts: cli.cross_charts || DEFAULTS.adaptive.cross_charts,
             ..DEFAULTS.adaptive
         },
         debug_dir: cli.debug_dir.clone(),

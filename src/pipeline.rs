@@ -16,8 +16,9 @@ use crate::bake::{Bake, BakeParams, mc, validity};
 use crate::encode::{self, Encoded, Lightmap};
 use crate::error::{Error, Result};
 use crate::file;
+use crate::geometry::BakeGeometry;
 use crate::gltf::write::{self, BakeRecord, OutputOptions};
-use crate::gltf::{self, BakeGeometry, Scene};
+use crate::gltf::{self, Scene};
 use crate::settings::{
     DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, Settings, UvSource, estimated_bytes,
 };
@@ -364,7 +365,8 @@ pub fn prepare(scene: &Scene, s: &Settings, timer: &mut StageTimer) -> Result<Pr
     timer.lap("prepare");
     let atlas = match (s.uv, s.size) {
         (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
-            atlas::unwrap::existing(scene, &geometry.receivers, set, r)?
+            let uvs = scene.lightmap_uvs(&geometry.receivers, set)?;
+            atlas::unwrap::existing(&geometry.receivers, uvs, r)
         }
         (_, size) => {
             let options = UnwrapOptions {

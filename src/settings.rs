@@ -113,7 +113,7 @@ impl Default for Settings {
             packing: Packing::Fast,
             uv: UvSource::Generate,
             // Adaptive: measured against 256-ray Monte Carlo on five scenes
-            // in the README's comparison table ("The adaptive method").
+            // in the comparison table of `docs/method-adaptive.md`.
             method: Method::Adaptive,
             rays: DEFAULT_RAYS,
             filter: ShearedOptions::default(),

@@ -143,7 +143,6 @@ fn the_adaptive_pre_pass_finds_the_validity_stages_inside_texels() {
                 ..mc.clone()
             };
             s.adaptive.pre_rays = pre_rays;
-            s.adaptive.cells = 1;
             let passes = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).unwrap();
             assert!(
                 passes.adaptive_stats.unwrap().inside == expected,

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The README's comparison table from `aobake report` directories.
+"""The comparison table of docs/method-adaptive.md from `aobake report` directories.
 
     python3 tools/comparison.py docs/cornell-1024 docs/sponza-1024 ...
 

@@ -1,6 +1,6 @@
 //! Atlas: the lightmap page and its texels.
 //!
-//! In: the [`crate::gltf::ReceiverMesh`]es in bake space. Out: an
+//! In: the [`crate::geometry::ReceiverMesh`]es in bake space. Out: an
 //! [`Atlas`] (one page, a chart layout per receiver mesh), its
 //! [`Receivers`] (one point per covered texel, the paper's receivers), and
 //! after the bake the dilation map that fills gutters and texels inside

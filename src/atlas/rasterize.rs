@@ -11,7 +11,7 @@
 //! black. A texel whose centre lies inside a triangle always takes that one.
 
 use super::unwrap::Atlas;
-use crate::gltf::ReceiverMesh;
+use crate::geometry::ReceiverMesh;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 

@@ -8,8 +8,7 @@
 //! swapped.
 
 use crate::error::{Error, Result};
-use crate::gltf::{ReceiverMesh, Scene, accessor};
-use std::collections::HashMap;
+use crate::geometry::ReceiverMesh;
 
 /// Largest atlas edge in texels (a 16k x 16k page with SH is ~6 GiB of floats).
 pub const MAX_ATLAS_EDGE: u32 = 16384;
@@ -161,66 +160,25 @@ pub fn unwrap_with_progress(
     })
 }
 
-/// Builds the atlas from an existing UV set `set` (`TEXCOORD_set`) of every
-/// baked primitive instead of unwrapping: the page is `resolution` square,
-/// vertices are not split. Fails, naming the primitive, if a primitive lacks
-/// the set, has UVs outside [0, 1] or non-finite, or is placed by several
-/// nodes (they would share one lightmap region).
-pub fn existing(
-    scene: &Scene,
-    meshes: &[ReceiverMesh],
-    set: usize,
-    resolution: u32,
-) -> Result<Atlas> {
-    let mut placements: HashMap<usize, usize> = HashMap::new();
-    for m in meshes {
-        *placements
-            .entry(scene.instances[m.instance].geometry)
-            .or_default() += 1;
-    }
-    let mut out = Vec::with_capacity(meshes.len());
-    for m in meshes {
-        let g = &scene.geometries[scene.instances[m.instance].geometry];
-        let what = g.label();
-        if placements[&scene.instances[m.instance].geometry] > 1 {
-            return Err(Error::option_conflict(
-                "uv",
-                format!(
-                    "{what} is placed by several nodes, which would share one lightmap region; use generated UVs"
-                ),
-            ));
-        }
-        let prim = &scene.doc.json["meshes"][g.mesh]["primitives"][g.primitive];
-        let acc = prim["attributes"][format!("TEXCOORD_{set}")]
-            .as_u64()
-            .ok_or_else(|| Error::option_conflict("uv", format!("{what} has no TEXCOORD_{set}")))?;
-        let uv = accessor::read(&scene.doc, acc as usize)?.to_f32::<2>(&what)?;
-        if uv.len() != m.positions.len() {
-            return Err(Error::Invalid(format!(
-                "{what}: TEXCOORD_{set} and POSITION counts differ"
-            )));
-        }
-        if let Some((v, p)) = uv
-            .iter()
-            .enumerate()
-            .find(|(_, p)| !p.iter().all(|c| c.is_finite() && (0.0..=1.0).contains(c)))
-        {
-            return Err(Error::Invalid(format!(
-                "{what}: TEXCOORD_{set} vertex {v} is ({}, {}), outside [0, 1]; an existing lightmap UV set must lie inside the unit square",
-                p[0], p[1]
-            )));
-        }
-        out.push(ChartedMesh {
+/// Builds the atlas from an existing UV set of every receiver mesh instead
+/// of unwrapping (`uvs[m]`: one UV in [0, 1] per vertex of `meshes[m]`,
+/// read and checked by the loader, `gltf::Scene::lightmap_uvs`): the page is
+/// `resolution` square, vertices are not split.
+pub fn existing(meshes: &[ReceiverMesh], uvs: Vec<Vec<[f32; 2]>>, resolution: u32) -> Atlas {
+    let out = meshes
+        .iter()
+        .zip(uvs)
+        .map(|(m, uv)| ChartedMesh {
             xref: (0..m.positions.len() as u32).collect(),
             uv,
             triangles: m.triangles.clone(),
-        });
-    }
-    Ok(Atlas {
+        })
+        .collect();
+    Atlas {
         width: resolution,
         height: resolution,
         charts: 0,
         utilization: 0.0,
         meshes: out,
-    })
+    }
 }

@@ -3,7 +3,8 @@
 //!
 //! In (reading): a `.glb`/`.gltf` path. Out: a [`Scene`] (the untouched
 //! document, each triangle primitive decoded once, every placement) and,
-//! through [`Scene::bake_geometry`], [`BakeGeometry`] in *bake space*.
+//! through [`Scene::bake_geometry`], [`crate::geometry::BakeGeometry`] in
+//! *bake space*.
 //! In (writing): the scene, its atlas and the encoded lightmaps. Out: the
 //! output GLB bytes ([`write::build_glb`]).
 //!
@@ -20,7 +21,4 @@ pub mod scene;
 pub mod write;
 
 pub use container::Document;
-pub use scene::{
-    BakeGeometry, BakeSpace, Instance, MAX_TRIANGLES, PrimitiveGeometry, ReceiverMesh, Scene, load,
-    primitive_label,
-};
+pub use scene::{Instance, MAX_TRIANGLES, PrimitiveGeometry, Scene, load, primitive_label};

@@ -11,7 +11,8 @@
 use super::accessor::{self, array, field_usize};
 use super::container::{self, Document};
 use crate::error::{Error, Result};
-use glam::{DMat3, DMat4, DQuat, DVec3, Vec3, Vec3A};
+use crate::geometry::{BakeGeometry, BakeSpace, ReceiverMesh};
+use glam::{DMat3, DMat4, DQuat, DVec3, Vec3A};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::path::Path;
@@ -74,55 +75,6 @@ pub struct Scene {
     pub instances: Vec<Instance>,
     /// Things the user should know (not baked, ignored), one line each.
     pub warnings: Vec<String>,
-}
-
-/// The uniform map from world space to bake space.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BakeSpace {
-    pub center: DVec3,
-    /// World length of the scene's bounding-box diagonal; bake-space unit.
-    pub diagonal: f64,
-}
-
-impl BakeSpace {
-    pub fn to_bake(&self, p: DVec3) -> Vec3 {
-        ((p - self.center) / self.diagonal).as_vec3()
-    }
-
-    /// The world position of bake-space `p` (the inverse of [`Self::to_bake`],
-    /// in single precision, as receivers are stored).
-    pub fn to_world(&self, p: Vec3) -> Vec3 {
-        self.center.as_vec3() + p * self.diagonal as f32
-    }
-}
-
-/// A baked placement in bake space, ready to unwrap and rasterize.
-#[derive(Debug, Clone)]
-pub struct ReceiverMesh {
-    /// Index into [`Scene::instances`].
-    pub instance: usize,
-    /// Positions in bake space.
-    pub positions: Vec<[f32; 3]>,
-    /// Unit world-space normals, if the primitive has them.
-    pub normals: Option<Vec<[f32; 3]>>,
-    /// Triangle list indexing `positions` (same as the primitive's).
-    pub triangles: Vec<u32>,
-    /// The transform mirrors (negative determinant): winding is flipped.
-    pub mirrored: bool,
-}
-
-/// All geometry of a scene in bake space.
-#[derive(Debug, Clone)]
-pub struct BakeGeometry {
-    pub space: BakeSpace,
-    /// Every non-degenerate triangle of every instance (occluders), wound
-    /// so that its front face is counter-clockwise in bake space (mirroring
-    /// placements are flipped back).
-    pub occluders: Vec<[Vec3A; 3]>,
-    /// Per occluder: its material is single-sided, so a ray reaching its
-    /// back face comes from inside or behind geometry.
-    pub occluder_single_sided: Vec<bool>,
-    pub receivers: Vec<ReceiverMesh>,
 }
 
 /// Reads a file and builds the [`Scene`].
@@ -340,6 +292,56 @@ impl Scene {
             instances,
             warnings,
         })
+    }
+    /// The existing lightmap UV set `set` (`TEXCOORD_set`) of every receiver
+    /// mesh, one UV per vertex, for [`crate::atlas::unwrap::existing`]. Fails,
+    /// naming the primitive, if a primitive lacks the set, has UVs outside
+    /// [0, 1] or non-finite, or is placed by several nodes (they would share
+    /// one lightmap region).
+    pub fn lightmap_uvs(&self, meshes: &[ReceiverMesh], set: usize) -> Result<Vec<Vec<[f32; 2]>>> {
+        let mut placements: HashMap<usize, usize> = HashMap::new();
+        for m in meshes {
+            *placements
+                .entry(self.instances[m.instance].geometry)
+                .or_default() += 1;
+        }
+        let mut out = Vec::with_capacity(meshes.len());
+        for m in meshes {
+            let g = &self.geometries[self.instances[m.instance].geometry];
+            let what = g.label();
+            if placements[&self.instances[m.instance].geometry] > 1 {
+                return Err(Error::option_conflict(
+                    "uv",
+                    format!(
+                        "{what} is placed by several nodes, which would share one lightmap region; use generated UVs"
+                    ),
+                ));
+            }
+            let prim = &self.doc.json["meshes"][g.mesh]["primitives"][g.primitive];
+            let acc = prim["attributes"][format!("TEXCOORD_{set}")]
+                .as_u64()
+                .ok_or_else(|| {
+                    Error::option_conflict("uv", format!("{what} has no TEXCOORD_{set}"))
+                })?;
+            let uv = accessor::read(&self.doc, acc as usize)?.to_f32::<2>(&what)?;
+            if uv.len() != m.positions.len() {
+                return Err(Error::Invalid(format!(
+                    "{what}: TEXCOORD_{set} and POSITION counts differ"
+                )));
+            }
+            if let Some((v, p)) = uv
+                .iter()
+                .enumerate()
+                .find(|(_, p)| !p.iter().all(|c| c.is_finite() && (0.0..=1.0).contains(c)))
+            {
+                return Err(Error::Invalid(format!(
+                    "{what}: TEXCOORD_{set} vertex {v} is ({}, {}), outside [0, 1]; an existing lightmap UV set must lie inside the unit square",
+                    p[0], p[1]
+                )));
+            }
+            out.push(uv);
+        }
+        Ok(out)
     }
 
     /// Number of placements that receive a lightmap.
@@ -598,18 +600,6 @@ fn gpu_instances(doc: &Document, ext: &Value, what: &str) -> Result<Vec<DMat4>> 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn bake_space_round_trips() {
-        let s = BakeSpace {
-            center: DVec3::new(10.0, -2.0, 3.5),
-            diagonal: 40.0,
-        };
-        let w = DVec3::new(12.0, 0.5, -1.0);
-        let back = s.to_world(s.to_bake(w));
-        assert!((back.as_dvec3() - w).length() < 1e-5, "{back}");
-        assert_eq!(s.to_world(Vec3::ZERO), s.center.as_vec3());
-    }
 
     #[test]
     fn strips_and_fans_expand_with_gltf_winding() {

@@ -17,10 +17,11 @@
 
 use super::accessor::{self, Component, RawAccessor, array};
 use super::container::{Document, glb_bytes, percent_decode};
-use super::scene::{BakeGeometry, Scene};
+use super::scene::Scene;
 use crate::atlas::Atlas;
 use crate::encode::Encoded;
 use crate::error::{Error, Result};
+use crate::geometry::BakeGeometry;
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};

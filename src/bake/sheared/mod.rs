@@ -50,7 +50,7 @@
 //! exact for cells that see nothing, which need no work at all.
 //!
 //! Where this departs from the paper, and why (each measured on Sponza
-//! against a 2048-ray reference, see the README's benchmark):
+//! against a 2048-ray reference, see `docs/method-sheared.md`):
 //! - sparse rays are traced to the max distance plus the gather reach, and
 //!   the distance test is applied per receiver (the paper traces unbounded
 //!   rays; tracing only to the max distance biased AO bright);

@@ -1,0 +1,186 @@
+//! Adaptive sampling with an axis-aligned filter (`--method adaptive`, the
+//! default): the cheap form of Egan et al.'s frequency analysis, after
+//! Mehta, Wang and Ramamoorthi 2012/2013 (see
+//! `shared/notes/axis-aligned-filtering.md` and `docs/method-adaptive.md`,
+//! which maps each stage to the papers and measures each departure).
+//!
+//! In: [`Receivers`] with their `inside` marks, a [`Tracer`],
+//! [`AdaptiveOptions`], [`BakeParams`], the [`StageTimer`]. Out: a [`Bake`]
+//! and [`AdaptiveStats`].
+//!
+//! The stages, in the order [`bake`] calls them, one module each:
+//!
+//! 1. [`prepass`]: `pre_rays` rays per receiver, the first points of its
+//!    own sequence: its own z_min, the visible count, the SH sums and the
+//!    strata its visibility boundary crosses.
+//! 2. [`bounds`]: the filter width sigma = z_min / (2 mu Omega_h) from the
+//!    z_min spread over the filter's support ([`width`]), 0 in contact;
+//!    the visibility spread over the neighbourhood ([`grid`]) and N_eff.
+//! 3. [`allocation`]: ray counts in proportion to sd / sqrt(N_eff), scaled
+//!    so the predicted error is `quality`-ray Monte Carlo's, powers of two
+//!    (whole Sobol blocks keep the stratification).
+//! 4. [`adaptive_pass`]: each receiver's sequence continued to its count.
+//! 5. [`filter`]: the integrated AO and occluded SH share averaged over
+//!    the atlas neighbours with Gaussian weights, rows then columns,
+//!    through the leak rule and within z_min; then the exact parts added
+//!    per receiver ([`sums::finish`]: the open hemisphere's projection, the
+//!    share below the geometric plane).
+//!
+//! Below them: [`options`], [`sums`] (what a receiver's rays add up to),
+//! [`strata`], [`width`] and [`grid`] (the atlas as a neighbourhood).
+
+pub mod adaptive_pass;
+pub mod allocation;
+pub mod bounds;
+pub mod filter;
+pub mod grid;
+pub mod options;
+pub mod prepass;
+pub mod strata;
+pub mod sums;
+pub mod width;
+
+pub use options::{AdaptiveOptions, MAX_ADAPTIVE_RAYS, MAX_REACH};
+
+use super::{Bake, BakeParams};
+use crate::atlas::Receivers;
+use crate::sh::SH_COUNT;
+use crate::stage::StageTimer;
+use crate::trace::Tracer;
+use filter::FilterSupport;
+use grid::TexelGrid;
+use rayon::prelude::*;
+
+/// What the adaptive bake did.
+#[derive(Clone, Debug, Default)]
+pub struct AdaptiveStats {
+    pub pre_rays: u64,
+    pub adaptive_rays: u64,
+    /// Per receiver: rays cast, spread z_min (bake units, INFINITY if
+    /// none; below [`width::contact_depth`] a bound, not the nearest hit), filter
+    /// sigma in texels (0: not filtered).
+    pub rays: Vec<u32>,
+    pub z_min: Vec<f32>,
+    pub sigma_texels: Vec<f32>,
+    /// Per receiver: inside geometry (the validity stage's test, made on
+    /// the pre-pass's rays; all false without `fill_inside`).
+    pub inside: Vec<bool>,
+}
+
+impl AdaptiveStats {
+    /// Receivers per ray count (power of two), ascending.
+    pub fn ray_histogram(&self) -> Vec<(u32, usize)> {
+        let mut h: std::collections::BTreeMap<u32, usize> = Default::default();
+        for &r in &self.rays {
+            *h.entry(r).or_default() += 1;
+        }
+        h.into_iter().collect()
+    }
+
+    /// The `--debug-dir` maps, each in [0, 1]: `z_min` (spread, over the max
+    /// distance), `rays_per_texel` (over the most any texel got) and
+    /// `filter_sigma` (over the widest).
+    pub fn debug_maps(&self, max_distance: f32) -> Vec<(&'static str, Vec<f32>)> {
+        let most = self.rays.iter().copied().max().unwrap_or(1).max(1) as f32;
+        let widest = self.sigma_texels.iter().copied().fold(0.0f32, f32::max);
+        let widest = if widest > 0.0 { widest } else { 1.0 };
+        vec![
+            (
+                "z_min",
+                self.z_min
+                    .iter()
+                    .map(|&z| (z / max_distance).min(1.0))
+                    .collect(),
+            ),
+            (
+                "rays_per_texel",
+                self.rays.iter().map(|&r| r as f32 / most).collect(),
+            ),
+            (
+                "filter_sigma",
+                self.sigma_texels.iter().map(|&s| s / widest).collect(),
+            ),
+        ]
+    }
+}
+
+/// The adaptive bake (see the module doc). `fill_inside`: find the
+/// receivers inside geometry ([`super::validity`], from the pre-pass's
+/// rays; they get the pre-pass only and neither lend nor receive in the
+/// filter), returned in [`AdaptiveStats::inside`]. Options validated.
+/// Laps: `pre-pass`, `bounds`, `adaptive pass`, `filter`.
+pub fn bake(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    fill_inside: bool,
+    o: &AdaptiveOptions,
+    p: &BakeParams,
+    timer: &mut StageTimer,
+    progress: &(dyn Fn(u64) + Sync),
+) -> (Bake, AdaptiveStats) {
+    let n = receivers.len();
+    let pre = prepass::pre_pass(receivers, tracer, fill_inside, o, p);
+    timer.lap("pre-pass");
+
+    // The bounds' working arrays end with their stage (the memory
+    // estimate counts its outputs only).
+    let grid = TexelGrid::new(receivers);
+    let b = bounds::bounds(receivers, &grid, &pre, o);
+    let rays: Vec<u32> = allocation::allocate_variances(&b.filtered, &b.unfiltered, o)
+        .into_iter()
+        .map(|t| t.max(o.pre_rays))
+        .collect();
+    let (z_min, sigma_texels) = (b.z_min, b.sigma_texels);
+    let (mut sums, inside) = (pre.sums, pre.inside);
+    timer.lap("bounds");
+
+    // Filtered receivers' sums leave out the rays below the geometric
+    // plane (counted only; see [`sums::below_compensated`]).
+    let filtered = |r: usize| sigma_texels[r] > 0.0;
+    adaptive_pass::adaptive_pass(
+        receivers, tracer, &mut sums, o.pre_rays, &rays, filtered, p, progress,
+    );
+    timer.lap("adaptive pass");
+
+    // Equal weight per receiver: weighting by ray count (inverse
+    // variance) biases dark, because the allocation sends more rays to
+    // occluded receivers (Cornell 512, adaptive:64: AO bias -0.0021 with
+    // it).
+    let values: Vec<[f32; 10]> = (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|r| {
+            let (normal, geo) = (receivers.normal[r], receivers.geo_normal[r]);
+            sums::below_compensated(&sums[r], rays[r], normal, geo, filtered(r))
+        })
+        .collect();
+    drop(sums);
+    let (mut ao, mut sh): (Vec<f32>, Vec<[f32; SH_COUNT]>) = FilterSupport {
+        receivers,
+        grid: &grid,
+        inside: &inside,
+        sigma_texels: &sigma_texels,
+        z_min: &z_min,
+    }
+    .filter(values);
+    drop(grid);
+    sums::finish(&receivers.normal, &receivers.geo_normal, &mut ao, &mut sh);
+    timer.lap("filter");
+
+    let pre_rays = n as u64 * o.pre_rays as u64;
+    let total: u64 = rays.iter().map(|&r| r as u64).sum();
+    let bake = Bake {
+        ao,
+        sh,
+        rays: total,
+    };
+    let stats = AdaptiveStats {
+        pre_rays,
+        adaptive_rays: total - pre_rays,
+        rays,
+        z_min,
+        sigma_texels,
+        inside,
+    };
+    (bake, stats)
+}
