@@ -5,13 +5,15 @@
 //! form per the output contract: AO as an 8-bit grey PNG, SH as three RGBA8
 //! PNGs with per-coefficient scale and offset (`c_i = shScale[i] * channel_i +
 //! shOffset[i]`; c0..c3 = T0.rgba, c4..c7 = T1.rgba, c8 = T2.r). Optionally a
-//! float EXR with channels `ao`, `sh0`..`sh8`.
+//! float EXR with channels `ao`, `sh0`..`sh8` (and `v0`..`v15` with the
+//! visibility layer). The visibility layer, when baked, is encoded the same
+//! way into 4 RGBA8 PNGs (3 at order 2) with its own scale and offset.
 
 use crate::atlas::Receivers;
 use crate::atlas::dilate::NONE;
 use crate::bake::Bake;
 use crate::error::{Error, Result};
-use crate::sh::SH_COUNT;
+use crate::sh::{SH_COUNT, VIS_COUNT};
 use image::ImageEncoder;
 use std::path::Path;
 
@@ -24,6 +26,8 @@ pub struct Lightmap {
     pub sh: Vec<[f32; SH_COUNT]>,
     /// Whether each texel holds a receiver of its own (not dilated).
     pub covered: Vec<bool>,
+    /// The visibility layer v_0..v_15, when baked.
+    pub visibility: Option<Vec<[f32; VIS_COUNT]>>,
 }
 
 /// The contract's encoded images.
@@ -33,14 +37,27 @@ pub struct Encoded {
     pub sh_png: [Vec<u8>; 3],
     pub sh_scale: [f32; SH_COUNT],
     pub sh_offset: [f32; SH_COUNT],
+    pub visibility: Option<EncodedVisibility>,
+}
+
+/// The visibility layer's images: `png[k]` holds v_{4k}..v_{4k+3} in
+/// RGBA, v_i = scale[i] x channel_i + offset[i].
+#[derive(Clone, Debug)]
+pub struct EncodedVisibility {
+    pub png: Vec<Vec<u8>>,
+    pub scale: Vec<f32>,
+    pub offset: Vec<f32>,
 }
 
 /// Spreads receiver results over the image through the dilation map.
 /// Fails if any value is NaN or infinite (it must never reach a texture).
 pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Lightmap> {
-    if let Some(r) = (0..receivers.len())
-        .find(|&r| !bake.ao[r].is_finite() || !bake.sh[r].iter().all(|c| c.is_finite()))
-    {
+    let layer = bake.visibility.as_ref().map(|l| &l.v);
+    if let Some(r) = (0..receivers.len()).find(|&r| {
+        !bake.ao[r].is_finite()
+            || !bake.sh[r].iter().all(|c| c.is_finite())
+            || layer.is_some_and(|v| !v[r].iter().all(|c| c.is_finite()))
+    }) {
         let t = receivers.texel[r];
         return Err(Error::Encode(format!(
             "non-finite result at texel ({}, {})",
@@ -65,6 +82,13 @@ pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Ligh
             .map(|t| pick(t).map_or([0.0; SH_COUNT], |r| bake.sh[r]))
             .collect(),
         covered,
+        // A gutter texel far from any receiver: the open hemisphere of +z
+        // would be as arbitrary; zero, as for the SH.
+        visibility: layer.map(|v| {
+            fill.iter()
+                .map(|t| pick(t).map_or([0.0; VIS_COUNT], |r| v[r]))
+                .collect()
+        }),
     })
 }
 
@@ -103,18 +127,18 @@ fn to_u8(v: f32) -> u8 {
 }
 
 /// Scale and offset mapping each coefficient's range onto [0, 1].
-pub fn sh_range(sh: &[[f32; SH_COUNT]]) -> ([f32; SH_COUNT], [f32; SH_COUNT]) {
-    let mut lo = [f32::INFINITY; SH_COUNT];
-    let mut hi = [f32::NEG_INFINITY; SH_COUNT];
+pub fn sh_range<const N: usize>(sh: &[[f32; N]]) -> ([f32; N], [f32; N]) {
+    let mut lo = [f32::INFINITY; N];
+    let mut hi = [f32::NEG_INFINITY; N];
     for c in sh {
-        for i in 0..SH_COUNT {
+        for i in 0..N {
             lo[i] = lo[i].min(c[i]);
             hi[i] = hi[i].max(c[i]);
         }
     }
-    let mut scale = [0.0; SH_COUNT];
-    let mut offset = [0.0; SH_COUNT];
-    for i in 0..SH_COUNT {
+    let mut scale = [0.0; N];
+    let mut offset = [0.0; N];
+    for i in 0..N {
         if lo[i].is_finite() {
             offset[i] = lo[i];
             scale[i] = hi[i] - lo[i];
@@ -123,26 +147,31 @@ pub fn sh_range(sh: &[[f32; SH_COUNT]]) -> ([f32; SH_COUNT], [f32; SH_COUNT]) {
     (scale, offset)
 }
 
-/// Encodes the lightmap per the output contract.
-pub fn encode(lm: &Lightmap) -> Result<Encoded> {
-    let (w, h) = (lm.width, lm.height);
-    let ao: Vec<u8> = lm.ao.iter().map(|&a| to_u8(a)).collect();
-    let occlusion_png = png(w, h, &ao, image::ExtendedColorType::L8)?;
-    let (sh_scale, sh_offset) = sh_range(&lm.sh);
-    let channel = |c: &[f32; SH_COUNT], i: usize| -> u8 {
-        if sh_scale[i] > 0.0 {
-            to_u8((c[i] - sh_offset[i]) / sh_scale[i])
+/// RGBA8 pages of the first `count` coefficients of `values`, 4 per page
+/// (`channel_i = (c_i - offset_i) / scale_i`; a page's unused channels
+/// hold 0, 0, 255), with the scale and offset of each.
+#[allow(clippy::type_complexity)]
+fn rgba_pages<const N: usize>(
+    w: u32,
+    h: u32,
+    values: &[[f32; N]],
+    count: usize,
+) -> Result<(Vec<Vec<u8>>, [f32; N], [f32; N])> {
+    let (scale, offset) = sh_range(values);
+    let channel = |c: &[f32; N], i: usize| -> u8 {
+        if scale[i] > 0.0 {
+            to_u8((c[i] - offset[i]) / scale[i])
         } else {
             0
         }
     };
-    let mut pages: [Vec<u8>; 3] = Default::default();
-    for (p, page) in pages.iter_mut().enumerate() {
-        let mut rgba = Vec::with_capacity(lm.sh.len() * 4);
-        for c in &lm.sh {
+    let mut pages = Vec::new();
+    for p in 0..count.div_ceil(4) {
+        let mut rgba = Vec::with_capacity(values.len() * 4);
+        for c in values {
             for k in 0..4 {
                 let i = p * 4 + k;
-                rgba.push(if i < SH_COUNT {
+                rgba.push(if i < count {
                     channel(c, i)
                 } else if k == 3 {
                     255
@@ -151,13 +180,37 @@ pub fn encode(lm: &Lightmap) -> Result<Encoded> {
                 });
             }
         }
-        *page = png(w, h, &rgba, image::ExtendedColorType::Rgba8)?;
+        pages.push(png(w, h, &rgba, image::ExtendedColorType::Rgba8)?);
     }
+    Ok((pages, scale, offset))
+}
+
+/// Encodes the lightmap per the output contract; the visibility layer, if
+/// any, to `visibility_order` (2: 9 coefficients, 3: 16).
+pub fn encode(lm: &Lightmap, visibility_order: u32) -> Result<Encoded> {
+    let (w, h) = (lm.width, lm.height);
+    let ao: Vec<u8> = lm.ao.iter().map(|&a| to_u8(a)).collect();
+    let occlusion_png = png(w, h, &ao, image::ExtendedColorType::L8)?;
+    let (sh_png, sh_scale, sh_offset) = rgba_pages(w, h, &lm.sh, SH_COUNT)?;
+    let sh_png: [Vec<u8>; 3] = sh_png.try_into().expect("3 SH pages");
+    let count = ((visibility_order + 1) * (visibility_order + 1)) as usize;
+    let visibility = match &lm.visibility {
+        Some(v) => {
+            let (png, scale, offset) = rgba_pages(w, h, v, count.min(VIS_COUNT))?;
+            Some(EncodedVisibility {
+                png,
+                scale: scale[..count].to_vec(),
+                offset: offset[..count].to_vec(),
+            })
+        }
+        None => None,
+    };
     Ok(Encoded {
         occlusion_png,
-        sh_png: pages,
+        sh_png,
         sh_scale,
         sh_offset,
+        visibility,
     })
 }
 
@@ -171,6 +224,14 @@ pub fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
             format!("sh{i}").as_str(),
             FlatSamples::F32(lm.sh.iter().map(|c| c[i]).collect()),
         ));
+    }
+    if let Some(v) = &lm.visibility {
+        for i in 0..VIS_COUNT {
+            chans.push(AnyChannel::new(
+                format!("v{i}").as_str(),
+                FlatSamples::F32(v.iter().map(|c| c[i]).collect()),
+            ));
+        }
     }
     let layer = Layer::new(
         (lm.width as usize, lm.height as usize),

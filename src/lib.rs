@@ -28,6 +28,7 @@ pub mod file;
 pub mod geometry;
 pub mod gltf;
 pub mod pipeline;
+pub mod relight;
 pub mod report;
 pub mod sample;
 pub mod settings;

@@ -3,6 +3,7 @@
 use aobake::atlas::{AtlasSize, Packing};
 use aobake::gltf::write::OcclusionMode;
 use aobake::report::ReportSettings;
+use aobake::settings::VisibilityMode;
 use aobake::stage::StageTimer;
 use aobake::{Method, Settings, UvSource};
 use clap::{Parser, ValueEnum};
@@ -58,6 +59,16 @@ enum UvArg {
     Generate,
     /// Reuse the lightmap UV set given by --uv-set.
     Existing,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum VisibilityArg {
+    /// Primitives whose material has a normal map or a glossy lobe.
+    Auto,
+    /// Every baked primitive.
+    All,
+    /// None.
+    Off,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -176,6 +187,12 @@ struct Cli {
     /// instead of filling them from their nearest valid texel.
     #[arg(long)]
     no_inside_fill: bool,
+    /// The visibility layer (SH of the visibility itself, for normal maps and glossy lobes): auto bakes it for primitives whose material has a normalTexture, roughnessFactor <= 0.5 or a clearcoat.
+    #[arg(long, value_enum, default_value_t = VisibilityArg::Auto)]
+    visibility: VisibilityArg,
+    /// SH order of the visibility layer: 3 (16 coefficients) or 2 (9).
+    #[arg(long, default_value_t = DEFAULTS.visibility_order)]
+    visibility_order: u32,
     /// Worker threads [default: all cores].
     #[arg(long)]
     threads: Option<usize>,
@@ -360,6 +377,12 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
         exr_dir: cli.exr.clone(),
         progress: !cli.quiet,
         fill_inside: !cli.no_inside_fill,
+        visibility: match cli.visibility {
+            VisibilityArg::Auto => VisibilityMode::Auto,
+            VisibilityArg::All => VisibilityMode::All,
+            VisibilityArg::Off => VisibilityMode::Off,
+        },
+        visibility_order: cli.visibility_order,
     };
     let report = aobake::run(&cli.input, &cli.output, &settings)?;
     if !cli.quiet {

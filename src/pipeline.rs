@@ -12,7 +12,7 @@
 use crate::atlas::{self, Atlas, AtlasSize, Receivers, UnwrapOptions, dilate};
 use crate::bake::adaptive::{self, AdaptiveStats};
 use crate::bake::sheared::{self, FilterStats};
-use crate::bake::{Bake, BakeParams, mc, validity};
+use crate::bake::{Bake, BakeParams, mc, validity, visibility};
 use crate::encode::{self, Encoded, Lightmap};
 use crate::error::{Error, Result};
 use crate::file;
@@ -20,7 +20,8 @@ use crate::geometry::BakeGeometry;
 use crate::gltf::write::{self, BakeRecord, OutputOptions};
 use crate::gltf::{self, Scene};
 use crate::settings::{
-    DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, Settings, UvSource, estimated_bytes,
+    DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, Settings, UvSource, VisibilityMode,
+    estimated_bytes_with,
 };
 use crate::stage::{StageTime, StageTimer, progress_bar, total};
 use crate::trace::Tracer;
@@ -53,6 +54,9 @@ pub struct Report {
     /// Adaptive method only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<AdaptiveReport>,
+    /// The visibility layer, when baked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub visibility: Option<VisibilityReport>,
     /// Rays cast over the seconds of the method's passes.
     pub rays_per_second: f64,
     pub max_distance: f64,
@@ -64,6 +68,18 @@ pub struct Report {
     /// The stages' seconds added up.
     pub total_seconds: f64,
     pub warnings: Vec<String>,
+}
+
+/// The visibility layer's figures in the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct VisibilityReport {
+    /// SH order written (3: 16 coefficients, 2: 9).
+    pub order: u32,
+    /// Baked primitives that carry the layer.
+    pub primitives: usize,
+    /// Uniform visibility rays cast (not in `rays_cast`).
+    pub rays: u64,
+    pub rays_per_texel: f64,
 }
 
 /// The filtered method's figures in the report.
@@ -181,6 +197,16 @@ pub struct Prepared {
     /// without the fill; `None` when the method finds them itself (the
     /// adaptive method, in its pre-pass: [`BakePasses::inside`]).
     pub inside: Option<Vec<bool>>,
+    /// Per receiver mesh: it gets the visibility layer (`--visibility`,
+    /// `auto` from its material). The layer is baked when any does.
+    pub visibility_meshes: Vec<bool>,
+}
+
+impl Prepared {
+    /// Whether the bake makes the visibility layer.
+    pub fn bakes_visibility(&self) -> bool {
+        self.visibility_meshes.iter().any(|&v| v)
+    }
 }
 
 /// What a method's passes over prepared receivers produced.
@@ -285,6 +311,12 @@ fn bake_loaded(
         warnings,
     } = output(scene, &prepared, &passes, s, output_dir, timer)?;
     let texels_inside = passes.inside(&prepared).iter().filter(|&&x| x).count();
+    let visibility_report = passes.bake.visibility.as_ref().map(|v| VisibilityReport {
+        order: s.visibility_order,
+        primitives: prepared.visibility_meshes.iter().filter(|&&m| m).count(),
+        rays: v.rays,
+        rays_per_texel: v.rays as f64 / prepared.receivers.len().max(1) as f64,
+    });
     let BakePasses {
         bake,
         filter_stats,
@@ -320,6 +352,7 @@ fn bake_loaded(
         adaptive: adaptive_stats
             .as_ref()
             .map(|a| AdaptiveReport::new(&s.adaptive, a)),
+        visibility: visibility_report,
         rays_per_second: if pass_seconds > 0.0 {
             bake.rays as f64 / pass_seconds
         } else {
@@ -391,7 +424,19 @@ pub fn prepare(scene: &Scene, s: &Settings, timer: &mut StageTimer) -> Result<Pr
         }
     };
     timer.lap("unwrap");
-    let need = estimated_bytes(atlas.width, atlas.height, s);
+    let visibility_meshes: Vec<bool> = geometry
+        .receivers
+        .iter()
+        .map(|m| match (s.visibility, s.method) {
+            (VisibilityMode::Off, _) | (VisibilityMode::Auto, Method::Sheared) => false,
+            (VisibilityMode::All, _) => true,
+            (VisibilityMode::Auto, _) => {
+                scene.material_reads_visibility(scene.instances[m.instance].geometry)
+            }
+        })
+        .collect();
+    let layer = visibility_meshes.iter().any(|&v| v);
+    let need = estimated_bytes_with(atlas.width, atlas.height, s, layer);
     if need > MAX_BAKE_BYTES {
         return Err(Error::Limit(format!(
             "a {}x{} atlas needs about {:.1} GiB of memory to bake, more than the {} GiB limit; lower the resolution or texel density",
@@ -446,6 +491,7 @@ pub fn prepare(scene: &Scene, s: &Settings, timer: &mut StageTimer) -> Result<Pr
         max_distance_world,
         max_distance,
         inside,
+        visibility_meshes,
     })
 }
 
@@ -463,8 +509,12 @@ pub fn bake_prepared(p: &Prepared, s: &Settings, timer: &mut StageTimer) -> Resu
     let progress = |n| pb.inc(n);
     let (bake, filter_stats, adaptive_stats) = match s.method {
         Method::Mc => {
-            let b = mc::bake(receivers, tracer, s.rays, &params, &progress);
+            let mut b = mc::bake(receivers, tracer, s.rays, &params, &progress);
             timer.lap("trace");
+            if p.bakes_visibility() {
+                b.visibility = Some(visibility::bake(receivers, tracer, s.rays, &params));
+                timer.lap("visibility pass");
+            }
             (b, None, None)
         }
         Method::Sheared => {
@@ -477,6 +527,7 @@ pub fn bake_prepared(p: &Prepared, s: &Settings, timer: &mut StageTimer) -> Resu
                 receivers,
                 tracer,
                 s.fill_inside,
+                p.bakes_visibility(),
                 &s.adaptive,
                 &params,
                 timer,
@@ -523,7 +574,7 @@ pub fn output(
     );
     let lightmap = encode::lightmap(receivers, &passes.bake, &fill)?;
     timer.lap("dilate");
-    let encoded = encode::encode(&lightmap)?;
+    let encoded = encode::encode(&lightmap, s.visibility_order)?;
     if let Some(dir) = &s.exr_dir {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         encode::write_exr(&lightmap, &dir.join("lightmap.exr"))?;
@@ -543,6 +594,7 @@ pub fn output(
             height: p.atlas.height,
         },
         occlusion: s.occlusion,
+        visibility_meshes: p.visibility_meshes.clone(),
         existing_uv: match s.uv {
             UvSource::Existing(set) => Some(set),
             UvSource::Generate => None,

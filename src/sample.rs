@@ -55,6 +55,18 @@ pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
     Vec3::new(d.x, d.y, z)
 }
 
+/// Uniformly distributed direction (in solid angle) in the local frame (z =
+/// normal) for `u` in `[0,1]^2`: z = u.x, azimuth 2 pi u.y (Archimedes'
+/// map, area-preserving, so a stratified square gives stratified solid
+/// angle). The visibility layer's rays, whose integrand has no cosine.
+#[inline]
+pub fn uniform_hemisphere(u: Vec2) -> Vec3 {
+    let z = u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let (s, c) = (2.0 * PI * u.y).sin_cos();
+    Vec3::new(r * c, r * s, z)
+}
+
 /// Index of the hemisphere cell holding local direction `d` (z >= 0 side).
 #[inline]
 pub fn cell_of(d: Vec3) -> usize {

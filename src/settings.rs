@@ -67,6 +67,21 @@ impl Method {
     }
 }
 
+/// Which primitives get the visibility layer (`--visibility`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum VisibilityMode {
+    /// Where the primitive's material can use it
+    /// (`gltf::Scene::material_reads_visibility`: a normal map or a glossy
+    /// lobe); a scene with none bakes no layer.
+    #[default]
+    Auto,
+    /// Every baked primitive.
+    All,
+    /// None.
+    Off,
+}
+
 /// Where the lightmap UVs come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum UvSource {
@@ -103,6 +118,11 @@ pub struct Settings {
     /// Fill texels inside or behind geometry from their nearest valid
     /// texel ([`crate::bake::validity`]); `false` bakes them as they are.
     pub fill_inside: bool,
+    /// Which primitives get the visibility layer.
+    pub visibility: VisibilityMode,
+    /// SH order of the visibility layer written: 3 (16 coefficients) or
+    /// 2 (9).
+    pub visibility_order: u32,
 }
 
 impl Default for Settings {
@@ -125,6 +145,8 @@ impl Default for Settings {
             exr_dir: None,
             progress: true,
             fill_inside: true,
+            visibility: VisibilityMode::Auto,
+            visibility_order: 3,
         }
     }
 }
@@ -141,6 +163,18 @@ impl Settings {
             Method::Mc => {}
             Method::Sheared => self.filter.validate()?,
             Method::Adaptive => self.adaptive.validate()?,
+        }
+        if !matches!(self.visibility_order, 2 | 3) {
+            return Err(Error::option(
+                "visibility_order",
+                format!("{} must be 2 or 3", self.visibility_order),
+            ));
+        }
+        if self.visibility == VisibilityMode::All && self.method == Method::Sheared {
+            return Err(Error::option_conflict(
+                "visibility",
+                "the sheared method does not bake the visibility layer; use --method adaptive or mc, or --visibility off",
+            ));
         }
         crate::atlas::unwrap::check_size(self.size)?;
         if let Some(d) = self.max_distance
@@ -168,7 +202,19 @@ impl Settings {
 /// maps). Measured peak RSS, Cornell box at 4096 x 3594, 16 rays: 2.09 GB
 /// (`mc`) and 2.24 GB (`adaptive`), under this estimate's 2.36 and 2.71 GB.
 pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
+    estimated_bytes_with(width, height, s, s.visibility == VisibilityMode::All)
+}
+
+/// Per atlas texel, what the visibility layer adds to either stage: its
+/// result (16 floats) and, in the bake, the filter's row pass and shares
+/// (2 x 68 B); in the output stages, the float layer (64 B) beside it.
+pub const VISIBILITY_BYTES_PER_TEXEL: u64 = 64 + 2 * 68;
+
+/// [`estimated_bytes`], knowing whether the scene bakes the visibility
+/// layer (`--visibility auto` decides from its materials).
+pub fn estimated_bytes_with(width: u32, height: u32, s: &Settings, layer: bool) -> u64 {
     let texels = width as u64 * height as u64;
+    let layer = if layer { VISIBILITY_BYTES_PER_TEXEL } else { 0 };
     let (working, kept) = match s.method {
         Method::Mc => (0, 0),
         // Counted as held throughout (not measured).
@@ -178,7 +224,7 @@ pub fn estimated_bytes(width: u32, height: u32, s: &Settings) -> u64 {
             AdaptiveOptions::KEPT_BYTES_PER_TEXEL,
         ),
     };
-    texels * (BAKE_BYTES_PER_TEXEL + working).max(BYTES_PER_TEXEL + kept)
+    texels * ((BAKE_BYTES_PER_TEXEL + working).max(BYTES_PER_TEXEL + kept) + layer)
 }
 
 #[cfg(test)]

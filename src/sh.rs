@@ -4,6 +4,12 @@
 //!
 //! In: a unit world-space direction. Out: the 9 basis values. Also the
 //! clamped-cosine band factors A_l used for open hemispheres.
+//!
+//! The visibility layer continues the basis to l = 3 (16 coefficients,
+//! [`basis16`], the contract's i = 9..15 in the same convention) and
+//! projects the visibility itself, without a cosine: the open hemisphere
+//! ([`open_visibility`]) and the lune below a geometric plane
+//! ([`below_plane_visibility`]) exactly.
 
 use glam::Vec3;
 
@@ -44,6 +50,140 @@ pub fn basis(w: Vec3) -> [f32; SH_COUNT] {
         kp * x * z,
         kd * (x * x - y * y),
     ]
+}
+
+/// Coefficients of the visibility layer at order 3 (bands 0..=3).
+pub const VIS_COUNT: usize = 16;
+
+/// Band l of coefficient i of the visibility layer.
+pub const VIS_BAND: [usize; VIS_COUNT] = [0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3];
+
+/// The l = 3 normalisations, in the contract's order i = 9..15 (m = -3..3,
+/// no Condon-Shortley phase): sqrt(35/(32 pi)), sqrt(105/(4 pi)),
+/// sqrt(21/(32 pi)), sqrt(7/(16 pi)), sqrt(21/(32 pi)), sqrt(105/(16 pi)),
+/// sqrt(35/(32 pi)).
+const K3_3: f32 = 0.590_043_6;
+const K3_2: f32 = 2.890_611_4;
+const K3_1: f32 = 0.457_045_8;
+const K3_0: f32 = 0.373_176_33;
+const K3_2D: f32 = 1.445_305_7;
+
+/// The 16 basis functions of bands 0..=3 for a unit direction w = (x, y,
+/// z): [`basis`], then 0.590044 y(3x^2 - y^2), 2.890611 xyz, 0.457046
+/// y(5z^2 - 1), 0.373176 z(5z^2 - 3), 0.457046 x(5z^2 - 1), 1.445306
+/// z(x^2 - y^2), 0.590044 x(x^2 - 3y^2).
+#[inline]
+pub fn basis16(w: Vec3) -> [f32; VIS_COUNT] {
+    let b = basis(w);
+    let (x, y, z) = (w.x, w.y, w.z);
+    let (xx, yy, zz) = (x * x, y * y, z * z);
+    [
+        b[0],
+        b[1],
+        b[2],
+        b[3],
+        b[4],
+        b[5],
+        b[6],
+        b[7],
+        b[8],
+        K3_3 * y * (3.0 * xx - yy),
+        K3_2 * x * y * z,
+        K3_1 * y * (5.0 * zz - 1.0),
+        K3_0 * z * (5.0 * zz - 3.0),
+        K3_1 * x * (5.0 * zz - 1.0),
+        K3_2D * z * (xx - yy),
+        K3_3 * x * (xx - 3.0 * yy),
+    ]
+}
+
+/// Hemisphere band factors lambda_l = 2 pi Int_0^1 P_l(t) dt (Funk-Hecke
+/// for the hemisphere's indicator H(n.w)): 2 pi, pi, 0, -pi/4.
+pub const HEMISPHERE_BAND: [f32; 4] = [
+    2.0 * std::f32::consts::PI,
+    std::f32::consts::PI,
+    0.0,
+    -std::f32::consts::FRAC_PI_4,
+];
+
+/// The visibility layer of an unoccluded receiver with normal n:
+/// v_i = Int H(n.w) Y_i(w) dw = lambda_l Y_i(n) (v_0 = sqrt(pi)).
+#[inline]
+pub fn open_visibility(n: Vec3) -> [f32; VIS_COUNT] {
+    let y = basis16(n);
+    std::array::from_fn(|i| HEMISPHERE_BAND[VIS_BAND[i]] * y[i])
+}
+
+/// Gauss-Legendre nodes and weights on [-1, 1], 6 points (alpha).
+const GAUSS_6: [(f64, f64); 6] = [
+    (-0.932_469_514_203_152, 0.171_324_492_379_170_3),
+    (-0.661_209_386_466_264_5, 0.360_761_573_048_138_6),
+    (-0.238_619_186_083_196_9, 0.467_913_934_572_691),
+    (0.238_619_186_083_196_9, 0.467_913_934_572_691),
+    (0.661_209_386_466_264_5, 0.360_761_573_048_138_6),
+    (0.932_469_514_203_152, 0.171_324_492_379_170_3),
+];
+
+/// Gauss-Legendre nodes and weights on [-1, 1], 4 points (phi).
+const GAUSS_4: [(f64, f64); 4] = [
+    (-0.861_136_311_594_052_6, 0.347_854_845_137_453_85),
+    (-0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
+    (0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
+    (0.861_136_311_594_052_6, 0.347_854_845_137_453_85),
+];
+
+/// The visibility layer of the lune of n's hemisphere below the geometric
+/// plane (normal `geo`): Int over {n.w > 0, geo.w <= 0} of Y_i(w) dw, the
+/// directions a tilted shading normal sends into the surface (occluded
+/// without tracing). Its first coefficient is Y_0 times the lune's solid
+/// angle 2 theta (theta: the angle between n and geo). Zero when the
+/// normals agree or for non-finite input; the open hemisphere when they are
+/// opposite.
+///
+/// By quadrature in the lune's own coordinates (w = cos(alpha) a +
+/// sin(alpha) (-cos(phi) m + sin(phi) n), alpha in [0, pi], phi in [0,
+/// theta], dw = sin(alpha) dalpha dphi; a = n x geo normalised, m = a x
+/// n): the integrand is a trigonometric polynomial of degree <= 4 in alpha
+/// and <= 3 in phi (over [0, theta]), so 6 x 4 Gauss-Legendre points (6 x
+/// 6 past 45 degrees) are exact to f32 (the tests compare with a fine quadrature and the
+/// lune's solid angle).
+pub fn below_plane_visibility(n: Vec3, geo: Vec3) -> [f32; VIS_COUNT] {
+    let (nd, g) = (n.as_dvec3(), geo.as_dvec3());
+    let c = nd.dot(g);
+    let cross = nd.cross(g);
+    let s = cross.length();
+    if !(c.is_finite() && s.is_finite()) || (s < 1e-9 && c > 0.0) {
+        return [0.0; VIS_COUNT];
+    }
+    if s < 1e-9 {
+        return open_visibility(n);
+    }
+    let theta = s.atan2(c);
+    let a = cross / s;
+    let m = a.cross(nd);
+    let pi = std::f64::consts::PI;
+    let mut acc = [0.0f64; VIS_COUNT];
+    // Shading normals tilt by a few degrees; past 45 the phi range needs
+    // the longer rule.
+    let phi_rule: &[(f64, f64)] = if theta < std::f64::consts::FRAC_PI_4 {
+        &GAUSS_4
+    } else {
+        &GAUSS_6
+    };
+    for &(xa, wa) in &GAUSS_6 {
+        let alpha = (xa + 1.0) * 0.5 * pi;
+        let (sa, ca) = alpha.sin_cos();
+        for &(xp, wp) in phi_rule {
+            let phi = (xp + 1.0) * 0.5 * theta;
+            let (sp, cp) = phi.sin_cos();
+            let w = a * ca + (m * -cp + nd * sp) * sa;
+            let weight = wa * wp * sa * (0.5 * pi) * (0.5 * theta);
+            for (o, y) in acc.iter_mut().zip(basis16(w.as_vec3())) {
+                *o += weight * y as f64;
+            }
+        }
+    }
+    acc.map(|v| v as f32)
 }
 
 /// Adds `weight * Y_i(w)` to each coefficient of `acc`.
@@ -141,13 +281,13 @@ pub fn below_plane(n: Vec3, geo: Vec3) -> [f32; SH_COUNT] {
 /// projection, which a few rays leave large). Add `open` for the
 /// coefficients ([`from_sums`]).
 #[inline]
-pub fn occluded_share(
-    open: &[f32; SH_COUNT],
-    occluded_sum: &[f32; SH_COUNT],
-    all_sum: &[f32; SH_COUNT],
+pub fn occluded_share<const N: usize>(
+    open: &[f32; N],
+    occluded_sum: &[f32; N],
+    all_sum: &[f32; N],
     per_ray: f32,
     visible: f32,
-) -> [f32; SH_COUNT] {
+) -> [f32; N] {
     let w = 1.0 - visible.clamp(0.0, 1.0);
     std::array::from_fn(|i| -occluded_sum[i] * per_ray + w * (all_sum[i] * per_ray - open[i]))
 }
@@ -304,5 +444,100 @@ mod tests {
             coefficients(&half, 0.25),
         );
         assert!((0..SH_COUNT).all(|i| (m[i] - (0.75 * a[i] + 0.25 * b[i])).abs() < 1e-6));
+    }
+
+    #[test]
+    fn order_3_basis_is_orthonormal_and_continues_the_contract() {
+        for i in 0..VIS_COUNT {
+            for j in i..VIS_COUNT {
+                let v = integrate(|w| basis16(w)[i] as f64 * basis16(w)[j] as f64);
+                let want = if i == j { 1.0 } else { 0.0 };
+                assert!((v - want).abs() < 2e-3, "<Y{i},Y{j}> = {v}");
+            }
+        }
+        // The contract's table, at a direction with no zero component.
+        let w = Vec3::new(0.36, -0.48, 0.8);
+        let (x, y, z) = (w.x, w.y, w.z);
+        let table = [
+            0.590044 * y * (3.0 * x * x - y * y),
+            2.890611 * x * y * z,
+            0.457046 * y * (5.0 * z * z - 1.0),
+            0.373176 * z * (5.0 * z * z - 3.0),
+            0.457046 * x * (5.0 * z * z - 1.0),
+            1.445306 * z * (x * x - y * y),
+            0.590044 * x * (x * x - 3.0 * y * y),
+        ];
+        let b = basis16(w);
+        assert_eq!(&b[..SH_COUNT], &basis(w));
+        for (k, t) in table.iter().enumerate() {
+            assert!(
+                (b[9 + k] - t).abs() < 1e-5,
+                "Y{}: {} vs {t}",
+                9 + k,
+                b[9 + k]
+            );
+        }
+    }
+
+    #[test]
+    fn open_visibility_matches_numeric_projection() {
+        // The closed forms: v_0 = sqrt(pi), and along +z v_2 = 0.488603 pi,
+        // v_12 = -0.373176 pi / 2.
+        let up = open_visibility(Vec3::Z);
+        assert!((up[0] - std::f32::consts::PI.sqrt()).abs() < 1e-5);
+        assert!((up[2] - 0.488_603 * std::f32::consts::PI).abs() < 1e-5);
+        assert!((up[12] + 0.373_176 * std::f32::consts::FRAC_PI_2).abs() < 1e-5);
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let v = open_visibility(n);
+        for (i, &vi) in v.iter().enumerate() {
+            let num = integrate(|w| {
+                if n.dot(w) > 0.0 {
+                    basis16(w)[i] as f64
+                } else {
+                    0.0
+                }
+            });
+            assert!((num - vi as f64).abs() < 5e-3, "v{i}: {num} vs {vi}");
+        }
+    }
+
+    #[test]
+    fn below_plane_visibility_matches_numeric_projection() {
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        for (axis, degrees) in [
+            (Vec3::X, 3.0f32),
+            (Vec3::new(1.0, 1.0, 0.0), 40.0),
+            (Vec3::new(0.0, 1.0, -1.0), 90.0),
+            (Vec3::Z, 150.0),
+        ] {
+            let axis = axis.cross(n).normalize();
+            let geo = glam::Quat::from_axis_angle(axis, degrees.to_radians()) * n;
+            let v = below_plane_visibility(n, geo);
+            for (i, &vi) in v.iter().enumerate() {
+                let num = integrate(|w| {
+                    if n.dot(w) > 0.0 && geo.dot(w) <= 0.0 {
+                        basis16(w)[i] as f64
+                    } else {
+                        0.0
+                    }
+                });
+                assert!(
+                    (num - vi as f64).abs() < 5e-3,
+                    "{degrees} deg, v{i}: {num} vs {vi}"
+                );
+            }
+            // The lune's solid angle is 2 theta.
+            let lune = 2.0 * degrees.to_radians() * 0.282_094_8;
+            assert!(
+                (v[0] - lune).abs() < 1e-5,
+                "{degrees} deg: {} vs {lune}",
+                v[0]
+            );
+        }
+        assert_eq!(below_plane_visibility(n, n), [0.0; VIS_COUNT]);
+        assert_eq!(below_plane_visibility(Vec3::NAN, n), [0.0; VIS_COUNT]);
+        let flipped = below_plane_visibility(n, -n);
+        let open = open_visibility(n);
+        assert!((0..VIS_COUNT).all(|i| (flipped[i] - open[i]).abs() < 1e-6));
     }
 }

@@ -25,6 +25,17 @@
 // - colour space: the textures hold linear data (NoColorSpace), clamp to
 //   edge, UVs as stored (GLTFLoader's flipY = false, v = 0 at the top).
 //
+// The visibility layer (`visibility[4|3]`, `visibilityScale`,
+// `visibilityOffset`: v_i = Int V H(n.w) Y_i dw, 16 or 9 coefficients), when
+// a primitive has it, lets the normal map drive the baked light: per
+// environment P_ik = sum_j Gamma_ijk L_j (a 16 x 16 float texture), per pixel
+// u = P^T v and E(n')/pi = c.L + E_C(n')/pi - E_C(n)/pi with n the vertex
+// normal and n' the normal-mapped one (the README's formula); and, where the
+// material has an environment map, its indirect specular is occluded by the
+// lobe-filtered visible radiance over an open receiver's (roughness from the
+// material). Without the layer, c.L at the vertex normal and, for the
+// specular, the cone of the AO around the bent normal from c.
+//
 // Use:
 //   const lightmaps = new AobakeLightmaps();
 //   loader.register((parser) => new AobakeLightmapPlugin(parser, lightmaps));
@@ -34,9 +45,13 @@
 
 import {
   ClampToEdgeWrapping,
+  DataTexture,
+  FloatType,
   LinearFilter,
   LinearMipmapLinearFilter,
+  NearestFilter,
   NoColorSpace,
+  RGBAFormat,
   Vector3,
 } from 'three';
 
@@ -46,7 +61,88 @@ export const EXTENSION = 'AOBAKE_lightmap';
 export const MODES = { off: 0, ao: 1, sh: 2 };
 
 /** Debug outputs (written raw, for tests and diagnostics). */
-export const DEBUG = { none: 0, irradiance: 1, ao: 2, uv: 3, probe: 4 };
+export const DEBUG = {
+  none: 0, irradiance: 1, ao: 2, uv: 3, probe: 4,
+  // With the layer: the normal-mapped irradiance over pi, and the world
+  // normals n' (normal-mapped) and n (vertex), as 0.5 + 0.5 n.
+  mapped: 5, shadingNormal: 6, vertexNormal: 7,
+};
+
+/** The 16 real SH basis functions (the contract's order and constants). */
+export function basis16([x, y, z]) {
+  return [
+    0.282095, 0.488603 * y, 0.488603 * z, 0.488603 * x,
+    1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1),
+    1.092548 * x * z, 0.546274 * (x * x - y * y),
+    0.590044 * y * (3 * x * x - y * y), 2.890611 * x * y * z,
+    0.457046 * y * (5 * z * z - 1), 0.373176 * z * (5 * z * z - 3),
+    0.457046 * x * (5 * z * z - 1), 1.445306 * z * (x * x - y * y),
+    0.590044 * x * (x * x - 3 * y * y),
+  ];
+}
+
+let gauntTable = null;
+/** Gamma_ijk = Int Y_i Y_j Y_k dw (i, k < 16, j < 9) by quadrature: 16
+ * Gauss-Legendre points in z (Golub-Welsch by Newton) x 32 in azimuth,
+ * exact for these degrees. Flat: g[(i * 9 + j) * 16 + k]. */
+export function gaunt() {
+  if (gauntTable) return gauntTable;
+  const n = 16;
+  const nodes = [];
+  for (let i = 0; i < n; i++) {
+    let t = Math.cos((Math.PI * (i + 0.75)) / (n + 0.5));
+    for (let it = 0; it < 100; it++) {
+      let p0 = 1, p1 = t;
+      for (let k = 2; k <= n; k++) [p0, p1] = [p1, ((2 * k - 1) * t * p1 - (k - 1) * p0) / k];
+      const dp = (n * (t * p1 - p0)) / (t * t - 1);
+      const step = p1 / dp;
+      t -= step;
+      if (Math.abs(step) < 1e-15) {
+        let q0 = 1, q1 = t;
+        for (let k = 2; k <= n; k++) [q0, q1] = [q1, ((2 * k - 1) * t * q1 - (k - 1) * q0) / k];
+        const d = (n * (t * q1 - q0)) / (t * t - 1);
+        nodes.push([t, 2 / ((1 - t * t) * d * d)]);
+        break;
+      }
+    }
+  }
+  const g = new Float64Array(16 * 9 * 16);
+  const az = 32;
+  for (const [z, wz] of nodes) {
+    const r = Math.sqrt(Math.max(0, 1 - z * z));
+    for (let a = 0; a < az; a++) {
+      const phi = ((a + 0.5) / az) * 2 * Math.PI;
+      const y = basis16([r * Math.cos(phi), r * Math.sin(phi), z]);
+      const w = (wz * 2 * Math.PI) / az;
+      for (let i = 0; i < 16; i++) {
+        for (let j = 0; j < 9; j++) {
+          const yij = w * y[i] * y[j];
+          for (let k = 0; k < 16; k++) g[(i * 9 + j) * 16 + k] += yij * y[k];
+        }
+      }
+    }
+  }
+  gauntTable = g;
+  return g;
+}
+
+/** P_ik = sum_j Gamma_ijk L_j for the 9 RGB coefficients `l` (arrays of
+ * 3): a 16 x 16 RGBA float array, row i, column k. */
+export function radianceProduct(l) {
+  const g = gaunt();
+  const p = new Float32Array(16 * 16 * 4);
+  for (let i = 0; i < 16; i++) {
+    for (let k = 0; k < 16; k++) {
+      for (let c = 0; c < 3; c++) {
+        let sum = 0;
+        for (let j = 0; j < 9; j++) sum += g[(i * 9 + j) * 16 + k] * l[j][c];
+        p[(i * 16 + k) * 4 + c] = sum;
+      }
+      p[(i * 16 + k) * 4 + 3] = 1;
+    }
+  }
+  return p;
+}
 
 /**
  * What the plugin found and the uniforms every patched material shares:
@@ -54,8 +150,12 @@ export const DEBUG = { none: 0, irradiance: 1, ao: 2, uv: 3, probe: 4 };
  */
 export class AobakeLightmaps {
   constructor() {
+    const product = new DataTexture(new Float32Array(16 * 16 * 4), 16, 16, RGBAFormat, FloatType);
+    product.magFilter = product.minFilter = NearestFilter;
+    product.needsUpdate = true;
     this.uniforms = {
       aobakeEnvSH: { value: Array.from({ length: 9 }, () => new Vector3()) },
+      aobakeP: { value: product },
       aobakeMode: { value: MODES.sh },
       aobakeDebug: { value: DEBUG.none },
     };
@@ -72,6 +172,9 @@ export class AobakeLightmaps {
   setEnvironment(sh) {
     const c = sh.coefficients ?? sh;
     for (let i = 0; i < 9; i++) this.uniforms.aobakeEnvSH.value[i].copy(c[i]);
+    const p = this.uniforms.aobakeP.value;
+    p.image.data.set(radianceProduct(c.map((v) => [v.x, v.y, v.z])));
+    p.needsUpdate = true;
   }
 
   /** 'sh': relight with the SH; 'ao': the environment's own light times the
@@ -96,6 +199,22 @@ export class AobakeLightmaps {
         t.minFilter = on ? LinearFilter : LinearMipmapLinearFilter;
         t.needsUpdate = true;
       }
+    }
+  }
+
+  /** Normal maps on (the materials' own) or off (removed, so the shading
+   * normal is the vertex normal and the bake relights it as c.L). */
+  setNormalMaps(on) {
+    for (const b of this.baked) {
+      const m = b.material;
+      if (!on && m.normalMap) {
+        m.userData.aobakeNormalMap = m.normalMap;
+        m.normalMap = null;
+      } else if (on && m.userData.aobakeNormalMap) {
+        m.normalMap = m.userData.aobakeNormalMap;
+        delete m.userData.aobakeNormalMap;
+      }
+      m.needsUpdate = true;
     }
   }
 
@@ -128,13 +247,33 @@ export function extensionProblem(ext, json) {
     const p = texture(ext.sh[i], `sh[${i}]`);
     if (p) return p;
   }
-  for (const key of ['shScale', 'shOffset']) {
+  const numbers = (key, count) => {
     const v = ext[key];
-    if (!Array.isArray(v) || v.length !== 9) {
-      return `${key} must hold 9 numbers (has ${Array.isArray(v) ? v.length : 'none'})`;
+    if (!Array.isArray(v) || v.length !== count) {
+      return `${key} must hold ${count} numbers (has ${Array.isArray(v) ? v.length : 'none'})`;
     }
     if (!v.every((x) => typeof x === 'number' && Number.isFinite(x))) {
       return `${key} holds a value that is not a finite number`;
+    }
+    return null;
+  };
+  for (const key of ['shScale', 'shOffset']) {
+    const p = numbers(key, 9);
+    if (p) return p;
+  }
+  if (ext.visibility !== undefined) {
+    const v = ext.visibility;
+    if (!Array.isArray(v) || (v.length !== 4 && v.length !== 3)) {
+      return 'visibility must list 4 (order 3) or 3 (order 2) textures';
+    }
+    for (let i = 0; i < v.length; i++) {
+      const p = texture(v[i], `visibility[${i}]`);
+      if (p) return p;
+    }
+    const count = v.length === 4 ? 16 : 9;
+    for (const key of ['visibilityScale', 'visibilityOffset']) {
+      const p = numbers(key, count);
+      if (p) return p;
     }
   }
   return null;
@@ -188,7 +327,8 @@ export class AobakeLightmapPlugin {
     let textures;
     try {
       textures = await Promise.all(
-        [ext.occlusion, ...ext.sh].map((ref) => this.parser.getDependency('texture', ref.index)),
+        [ext.occlusion, ...ext.sh, ...(ext.visibility ?? [])].map((ref) =>
+          this.parser.getDependency('texture', ref.index)),
       );
     } catch (e) {
       lm.problems.push(`${label} ${EXTENSION}: a texture does not load (${e.message ?? e})`);
@@ -242,11 +382,115 @@ vec3 aobakeIrradiance() {
   }
   return result;
 }
+
+#ifdef AOBAKE_VISIBILITY
+uniform sampler2D aobakeV0;
+uniform sampler2D aobakeV1;
+uniform sampler2D aobakeV2;
+uniform sampler2D aobakeV3;
+uniform float aobakeVScale[16];
+uniform float aobakeVOffset[16];
+uniform sampler2D aobakeP;
+const int AOBAKE_BAND[16] = int[16](0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3);
+
+void aobakeBasis(vec3 w, out float y[16]) {
+  float x = w.x, yy = w.y, z = w.z;
+  y[0] = 0.282095; y[1] = 0.488603 * yy; y[2] = 0.488603 * z; y[3] = 0.488603 * x;
+  y[4] = 1.092548 * x * yy; y[5] = 1.092548 * yy * z; y[6] = 0.315392 * (3.0 * z * z - 1.0);
+  y[7] = 1.092548 * x * z; y[8] = 0.546274 * (x * x - yy * yy);
+  y[9] = 0.590044 * yy * (3.0 * x * x - yy * yy); y[10] = 2.890611 * x * yy * z;
+  y[11] = 0.457046 * yy * (5.0 * z * z - 1.0); y[12] = 0.373176 * z * (5.0 * z * z - 3.0);
+  y[13] = 0.457046 * x * (5.0 * z * z - 1.0); y[14] = 1.445306 * z * (x * x - yy * yy);
+  y[15] = 0.590044 * x * (x * x - 3.0 * yy * yy);
+}
+
+// u = P^T v: the visible radiance's projection (v from the layer, or any
+// 16 coefficients, e.g. an open receiver's).
+void aobakeVisibleRadiance(float v[16], out vec3 u[16]) {
+  for (int k = 0; k < 16; k++) u[k] = vec3(0.0);
+  for (int i = 0; i < AOBAKE_VCOUNT; i++) {
+    for (int k = 0; k < 16; k++) u[k] += v[i] * texelFetch(aobakeP, ivec2(k, i), 0).rgb;
+  }
+}
+
+void aobakeLayer(out float v[16]) {
+  vec4 t[4] = vec4[4](texture2D(aobakeV0, vAobakeUv), texture2D(aobakeV1, vAobakeUv),
+                      texture2D(aobakeV2, vAobakeUv), texture2D(aobakeV3, vAobakeUv));
+  for (int i = 0; i < 16; i++) {
+    v[i] = i < AOBAKE_VCOUNT ? aobakeVScale[i] * t[i / 4][i % 4] + aobakeVOffset[i] : 0.0;
+  }
+}
+
+// E_C(m) / pi = (1/pi) sum_{k<9} A_l u_k Y_k(m).
+vec3 aobakeIrradianceAt(vec3 u[16], vec3 m) {
+  float y[16];
+  aobakeBasis(m, y);
+  const float A[3] = float[3](3.14159265, 2.09439510, 0.78539816);
+  vec3 e = vec3(0.0);
+  for (int k = 0; k < 9; k++) e += A[AOBAKE_BAND[k]] * u[k] * y[k];
+  return e / 3.14159265;
+}
+
+// The anchored diffuse over pi at the world shading normal np, for the
+// world vertex normal n: c.L + E_C(np)/pi - E_C(n)/pi.
+vec3 aobakeMappedIrradiance(vec3 n, vec3 np) {
+  float v[16];
+  vec3 u[16];
+  aobakeLayer(v);
+  aobakeVisibleRadiance(v, u);
+  return aobakeIrradiance() + aobakeIrradianceAt(u, np) - aobakeIrradianceAt(u, n);
+}
+
+// Specular occlusion of a lobe of perceptual roughness r about the world
+// direction R: the lobe-filtered visible radiance over an open receiver's
+// (zonal factors exp(-l^2 / (2 s)) of a Phong lobe, s = 2 / alpha^2 - 2).
+float aobakeSpecularOcclusion(vec3 n, vec3 R, float r) {
+  float v[16], open[16], y[16];
+  vec3 u[16], uo[16];
+  aobakeLayer(v);
+  aobakeBasis(n, y);
+  const float lambda[4] = float[4](6.28318531, 3.14159265, 0.0, -0.78539816);
+  for (int i = 0; i < 16; i++) open[i] = lambda[AOBAKE_BAND[i]] * y[i];
+  aobakeVisibleRadiance(v, u);
+  aobakeVisibleRadiance(open, uo);
+  aobakeBasis(R, y);
+  float a = max(r * r, 1e-3), s = max(2.0 / (a * a) - 2.0, 1e-3);
+  vec3 seen = vec3(0.0), unoccluded = vec3(0.0);
+  for (int k = 0; k < 16; k++) {
+    float l = float(AOBAKE_BAND[k]);
+    float w = exp(-l * l / (2.0 * s)) * y[k];
+    seen += w * u[k];
+    unoccluded += w * uo[k];
+  }
+  const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
+  float o = dot(unoccluded, lum);
+  return o > 1e-6 ? clamp(dot(seen, lum) / o, 0.0, 1.0) : 1.0;
+}
+#else
+// Without the layer: the cone of the AO around the bent normal from c
+// (Jimenez et al. 2016): a visibility cone of cos = sqrt(1 - AO) and the
+// lobe's cone, their overlap by a smooth step of the angle between them.
+float aobakeSpecularOcclusion(vec3 n, vec3 R, float r) {
+  vec4 a = texture2D(aobakeSh0, vAobakeUv);
+  vec3 bent = vec3(aobakeShScale[3] * a.a + aobakeShOffset[3],
+                   aobakeShScale[1] * a.g + aobakeShOffset[1],
+                   aobakeShScale[2] * a.b + aobakeShOffset[2]);
+  bent = length(bent) > 1e-6 ? normalize(bent) : n;
+  float ao = clamp(texture2D(aobakeAoTex, vAobakeUv).r, 0.0, 1.0);
+  float cosVis = sqrt(max(1.0 - ao, 0.0));
+  float cosLobe = cos(clamp(r * r, 0.02, 1.0) * 1.5707963);
+  float rv = acos(clamp(cosVis, -1.0, 1.0)), rl = acos(clamp(cosLobe, -1.0, 1.0));
+  float d = acos(clamp(dot(bent, R), -1.0, 1.0));
+  float overlap = 1.0 - smoothstep(0.0, 1.0, (d - abs(rv - rl)) / max(rv + rl - abs(rv - rl), 1e-4));
+  float full = (1.0 - cosVis) / max(1.0 - cosLobe, 1e-4);
+  return clamp(mix(0.0, min(full, 1.0), overlap), 0.0, 1.0);
+}
+#endif
 `;
 
 /** Patches a standard (or physical) material for the bake. */
 export function patchMaterial(material, lightmaps, textures, ext) {
-  const [ao, sh0, sh1, sh2] = textures;
+  const [ao, sh0, sh1, sh2, ...layer] = textures;
   const own = {
     aobakeAoTex: { value: ao },
     aobakeSh0: { value: sh0 },
@@ -255,6 +499,24 @@ export function patchMaterial(material, lightmaps, textures, ext) {
     aobakeShScale: { value: ext.shScale.slice() },
     aobakeShOffset: { value: ext.shOffset.slice() },
   };
+  const hasLayer = layer.length > 0;
+  if (hasLayer) {
+    const pad = (a) => [...a, ...new Array(16 - a.length).fill(0)];
+    Object.assign(own, {
+      aobakeV0: { value: layer[0] },
+      aobakeV1: { value: layer[1] },
+      aobakeV2: { value: layer[2] },
+      // Order 2 has 3 textures; the fourth is never read then.
+      aobakeV3: { value: layer[3] ?? layer[2] },
+      aobakeVScale: { value: pad(ext.visibilityScale) },
+      aobakeVOffset: { value: pad(ext.visibilityOffset) },
+    });
+    material.defines = {
+      ...(material.defines ?? {}),
+      AOBAKE_VISIBILITY: '',
+      AOBAKE_VCOUNT: String(ext.visibilityScale.length),
+    };
+  }
   material.userData.aobake = own;
   material.onBeforeCompile = (shader) => {
     Object.assign(shader.uniforms, own, lightmaps.uniforms);
@@ -271,7 +533,22 @@ export function patchMaterial(material, lightmaps, textures, ext) {
     // The bake replaces the probe's unoccluded light: three's irradiance E
     // is pi times the decoded sum.
     irradiance -= getLightProbeIrradiance(lightProbe, geometryNormal);
+#ifdef AOBAKE_VISIBILITY
+    // The normal map's n' (geometryNormal) relit against the vertex
+    // normal n the bake used (nonPerturbedNormal), both in world space.
+    irradiance += PI * aobakeMappedIrradiance(
+      transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),
+      transformNormalByInverseViewMatrix(geometryNormal, viewMatrix));
+#else
     irradiance += PI * aobakeIrradiance();
+#endif
+  }
+#endif
+#if defined( RE_IndirectSpecular ) && defined( USE_ENVMAP )
+  if (aobakeMode == 2) {
+    vec3 aobakeR = transformNormalByInverseViewMatrix(reflect(-geometryViewDir, geometryNormal), viewMatrix);
+    radiance *= aobakeSpecularOcclusion(
+      transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), aobakeR, material.roughness);
   }
 #endif`,
       )
@@ -288,10 +565,17 @@ export function patchMaterial(material, lightmaps, textures, ext) {
   if (aobakeDebug == 1) gl_FragColor = vec4(aobakeIrradiance(), 1.0);
   else if (aobakeDebug == 2) gl_FragColor = vec4(vec3(texture2D(aobakeAoTex, vAobakeUv).r), 1.0);
   else if (aobakeDebug == 3) gl_FragColor = vec4(vAobakeUv, 0.0, 1.0);
-  else if (aobakeDebug == 4) gl_FragColor = vec4(getLightProbeIrradiance(lightProbe, geometryNormal) / PI, 1.0);`,
+  else if (aobakeDebug == 4) gl_FragColor = vec4(getLightProbeIrradiance(lightProbe, geometryNormal) / PI, 1.0);
+#ifdef AOBAKE_VISIBILITY
+  else if (aobakeDebug == 5) gl_FragColor = vec4(aobakeMappedIrradiance(
+    transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),
+    transformNormalByInverseViewMatrix(normal, viewMatrix)), 1.0);
+#endif
+  else if (aobakeDebug == 6) gl_FragColor = vec4(0.5 + 0.5 * transformNormalByInverseViewMatrix(normal, viewMatrix), 1.0);
+  else if (aobakeDebug == 7) gl_FragColor = vec4(0.5 + 0.5 * transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), 1.0);`,
       );
   };
-  material.customProgramCacheKey = () => 'aobake-lightmap-v1';
+  material.customProgramCacheKey = () => `aobake-lightmap-v2-${hasLayer ? ext.visibilityScale.length : 0}`;
   // The material's own occlusionTexture would multiply the indirect light
   // again: the bake's AO is applied by the modes above instead.
   material.aoMapIntensity = 0;

@@ -25,7 +25,9 @@ const probe = new THREE.LightProbe();
 scene.add(probe);
 const lightmaps = new AobakeLightmaps();
 
-const state = { env: 'sky', rotation: 0, mode: 'sh', image: null, model: null, name: '' };
+const state = {
+  env: 'sky', rotation: 0, mode: 'sh', normalMaps: true, image: null, model: null, name: '',
+};
 
 function say(text, level = 'info') {
   messageBox.textContent = text;
@@ -114,6 +116,7 @@ async function load(source, name) {
   state.name = name;
   scene.add(gltf.scene);
   frame(gltf.scene);
+  if (!state.normalMaps) lightmaps.setNormalMaps(false);
   applyEnvironment();
   applyMode();
   say(...describe());
@@ -198,6 +201,11 @@ for (const radio of document.querySelectorAll('input[name=mode]')) {
     applyMode();
   });
 }
+document.getElementById('normalmaps').addEventListener('change', (e) => {
+  state.normalMaps = e.target.checked;
+  lightmaps.setNormalMaps(state.normalMaps);
+  render();
+});
 document.getElementById('file').addEventListener('change', async (e) => {
   const file = e.target.files[0];
   if (file) await load(await file.arrayBuffer(), file.name);
@@ -262,6 +270,18 @@ window.aobakeViewer = {
     document.querySelector(`input[name=mode][value=${mode}]`).checked = true;
     applyMode();
   },
+  setNormalMaps(on) {
+    state.normalMaps = on;
+    document.getElementById('normalmaps').checked = on;
+    lightmaps.setNormalMaps(on);
+    render();
+  },
+  setDebug(name) {
+    lightmaps.setDebug(name);
+    render();
+  },
+  /** Per baked primitive: whether it has the visibility layer. */
+  layers: () => lightmaps.baked.map((b) => b.extension.visibility !== undefined),
   view(position, target) {
     camera.position.fromArray(position);
     controls.target.fromArray(target);

@@ -45,6 +45,7 @@ pub fn bake(
         ao,
         sh: shv,
         rays: n as u64 * rays as u64,
+        visibility: None,
     }
 }
 

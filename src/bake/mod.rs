@@ -10,6 +10,8 @@
 //!   integrated values (the default);
 //! - [`sheared`]: the sheared filter of Egan et al. 2011 (`--method
 //!   sheared`), sparse rays shared between neighbouring receivers;
+//! - [`visibility`]: the visibility layer v (16 SH coefficients of V
+//!   itself, uniform rays), for `mc` and (filtered) `adaptive`;
 //! - [`validity`]: which receivers lie inside or behind geometry (their
 //!   texels are filled, not shown): a stage before Monte Carlo and the
 //!   sheared method, made by the adaptive method's pre-pass on the same
@@ -24,6 +26,7 @@ pub mod adaptive;
 pub mod mc;
 pub mod sheared;
 pub mod validity;
+pub mod visibility;
 
 use crate::atlas::Receivers;
 use crate::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};
@@ -36,8 +39,10 @@ use glam::{Vec2, Vec3};
 pub struct Bake {
     pub ao: Vec<f32>,
     pub sh: Vec<[f32; SH_COUNT]>,
-    /// Rays cast.
+    /// Rays cast (the visibility layer's not counted).
     pub rays: u64,
+    /// The visibility layer, when asked for ([`visibility`]).
+    pub visibility: Option<visibility::Visibility>,
 }
 
 /// What every method is told besides its own options.

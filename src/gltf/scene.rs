@@ -24,6 +24,15 @@ const COMPRESSION_EXTENSIONS: [&str; 3] = [
     "KHR_meshopt_compression",
 ];
 
+/// Roughness below which a material's specular lobe is glossy enough to
+/// need occluding by direction (`--visibility auto`): at roughness 0.3 AO
+/// times the unoccluded reflection misses by about 0.2 where the layer
+/// gives 0.02 (`shared/notes/visibility-sh.md`). 0.5 itself is left out:
+/// it is Blender's default for a material nobody tuned (the Cornell box's
+/// diffuse walls carry it), and its lobe is nearly as wide as the diffuse
+/// one.
+pub const GLOSSY_ROUGHNESS: f64 = 0.4;
+
 /// Most triangles a scene may have (all instances), protecting memory.
 pub const MAX_TRIANGLES: usize = 50_000_000;
 
@@ -293,6 +302,31 @@ impl Scene {
             warnings,
         })
     }
+    /// Whether the material of primitive `geometry` can use the visibility
+    /// layer (`--visibility auto`): it has a `normalTexture` (the layer
+    /// relights the normal-mapped normal), or a glossy lobe worth
+    /// occluding: `roughnessFactor` below [`GLOSSY_ROUGHNESS`] (glTF's
+    /// default is 1, rough) or a `KHR_materials_clearcoat` layer with a
+    /// non-zero `clearcoatFactor`. A primitive without a material has
+    /// glTF's default one: rough, no normal map.
+    pub fn material_reads_visibility(&self, geometry: usize) -> bool {
+        let g = &self.geometries[geometry];
+        let prim = &self.doc.json["meshes"][g.mesh]["primitives"][g.primitive];
+        let Some(m) = prim.get("material").and_then(Value::as_u64) else {
+            return false;
+        };
+        let mat = &self.doc.json["materials"][m as usize];
+        let roughness = mat["pbrMetallicRoughness"]["roughnessFactor"]
+            .as_f64()
+            .unwrap_or(1.0);
+        let clearcoat = mat["extensions"]["KHR_materials_clearcoat"]["clearcoatFactor"]
+            .as_f64()
+            .unwrap_or(0.0);
+        mat.get("normalTexture").is_some_and(Value::is_object)
+            || roughness < GLOSSY_ROUGHNESS
+            || clearcoat > 0.0
+    }
+
     /// The existing lightmap UV set `set` (`TEXCOORD_set`) of every receiver
     /// mesh, one UV per vertex, for [`crate::atlas::unwrap::existing`]. Fails,
     /// naming the primitive, if a primitive lacks the set, has UVs outside

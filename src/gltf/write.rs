@@ -209,6 +209,9 @@ pub struct BakeRecord {
 pub struct OutputOptions {
     pub record: BakeRecord,
     pub occlusion: OcclusionMode,
+    /// Per receiver mesh: it gets the visibility layer's fields (when the
+    /// encoded lightmap has the layer).
+    pub visibility_meshes: Vec<bool>,
     /// Bake into this existing TEXCOORD set instead of a generated one.
     pub existing_uv: Option<usize>,
     /// The directory the GLB will be written to: relative URIs of external
@@ -289,6 +292,22 @@ pub fn build_glb(
         "shScale": encoded.sh_scale,
         "shOffset": encoded.sh_offset,
     });
+    // The visibility layer's textures, when any primitive gets it.
+    let visibility = encoded
+        .visibility
+        .as_ref()
+        .filter(|_| options.visibility_meshes.iter().any(|&v| v))
+        .map(|layer| {
+            let tex: Vec<Value> = layer
+                .png
+                .iter()
+                .enumerate()
+                .map(|(i, png)| {
+                    json!({"index": texture(&mut json, &mut bin, png, &format!("aobake_visibility{i}"))})
+                })
+                .collect();
+            (tex, layer)
+        });
 
     // New primitives.
     let mut edits = Vec::new();
@@ -313,6 +332,13 @@ pub fn build_glb(
         };
         let mut ext = prim_ext.clone();
         ext["texCoord"] = json!(tex_coord);
+        if let Some((tex, layer)) = &visibility
+            && options.visibility_meshes.get(k).copied().unwrap_or(false)
+        {
+            ext["visibility"] = json!(tex);
+            ext["visibilityScale"] = json!(layer.scale);
+            ext["visibilityOffset"] = json!(layer.offset);
+        }
         set_extension(&mut prim, ext);
         edits.push(PrimitiveEdit {
             node: inst.node,
@@ -336,6 +362,9 @@ pub fn build_glb(
         "maxDistance": record.max_distance,
         "resolution": [record.width, record.height],
     });
+    if let Some((_, layer)) = &visibility {
+        exts[EXTENSION]["visibilityOrder"] = json!(if layer.scale.len() == 16 { 3 } else { 2 });
+    }
     let used = obj.entry("extensionsUsed").or_insert_with(|| json!([]));
     if let Some(u) = used.as_array_mut()
         && !u.iter().any(|e| e == EXTENSION)

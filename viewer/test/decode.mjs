@@ -116,3 +116,81 @@ export function projectScalar(radiance, n = 200000) {
   }
   return out;
 }
+
+/** The visibility layer v_0..v_15 at (u, v) (9 at order 2, the rest 0). */
+export function visibilityAt(images, ext, u, v) {
+  const out = new Array(16).fill(0);
+  for (let i = 0; i < ext.visibilityScale.length; i++) {
+    const x = bilinear(images[Math.floor(i / 4)], u, v, i % 4);
+    out[i] = ext.visibilityScale[i] * x + ext.visibilityOffset[i];
+  }
+  return out;
+}
+
+/** The contract's 16 basis functions (bands 0..3), from its tables. */
+export function basis16(w) {
+  const [x, y, z] = w;
+  return [
+    ...basis(w),
+    0.590044 * y * (3 * x * x - y * y), 2.890611 * x * y * z,
+    0.457046 * y * (5 * z * z - 1), 0.373176 * z * (5 * z * z - 3),
+    0.457046 * x * (5 * z * z - 1), 1.445306 * z * (x * x - y * y),
+    0.590044 * x * (x * x - 3 * y * y),
+  ];
+}
+
+let triple = null;
+/**
+ * The SH triple product Int Y_i Y_j Y_k dw (i, k < 16, j < 9) by a fine
+ * midpoint rule in (cos theta, phi) (another rule than the plugin's
+ * Gauss-Legendre): t[i][j][k].
+ */
+export function tripleProduct() {
+  if (triple) return triple;
+  triple = Array.from({ length: 16 }, () => Array.from({ length: 9 }, () => new Array(16).fill(0)));
+  const nz = 160;
+  const np = 320;
+  const dw = (2 / nz) * ((2 * Math.PI) / np);
+  for (let a = 0; a < nz; a++) {
+    const z = -1 + (2 * (a + 0.5)) / nz;
+    const r = Math.sqrt(1 - z * z);
+    for (let b = 0; b < np; b++) {
+      const phi = ((b + 0.5) / np) * 2 * Math.PI;
+      const y = basis16([r * Math.cos(phi), r * Math.sin(phi), z]);
+      for (let i = 0; i < 16; i++) {
+        for (let j = 0; j < 9; j++) {
+          const yij = y[i] * y[j] * dw;
+          for (let k = 0; k < 16; k++) triple[i][j][k] += yij * y[k];
+        }
+      }
+    }
+  }
+  return triple;
+}
+
+/**
+ * The README's anchored diffuse for one colour channel: c.L + E_C(n')/pi -
+ * E_C(n)/pi with u = P^T v, P_ik = sum_j Gamma_ijk L_j.
+ */
+export function anchoredDiffuse(c, v, L, n, nPrime) {
+  const t = tripleProduct();
+  const u = new Array(16).fill(0);
+  for (let i = 0; i < 16; i++) {
+    if (v[i] === 0) continue;
+    for (let k = 0; k < 16; k++) {
+      let p = 0;
+      for (let j = 0; j < 9; j++) p += t[i][j][k] * L[j];
+      u[k] += v[i] * p;
+    }
+  }
+  const A = [Math.PI, (2 * Math.PI) / 3, Math.PI / 4];
+  const band = [0, 1, 1, 1, 2, 2, 2, 2, 2];
+  const at = (m) => {
+    const y = basis(m);
+    let e = 0;
+    for (let k = 0; k < 9; k++) e += A[band[k]] * u[k] * y[k];
+    return e / Math.PI;
+  };
+  const cl = c.reduce((s, ci, i) => s + ci * L[i], 0);
+  return cl + at(nPrime) - at(n);
+}

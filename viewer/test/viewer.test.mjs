@@ -11,7 +11,8 @@ import { readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { bake, launch, open, pick, repoDir, serve, sharedAssets, tempDir } from './harness.mjs';
 import {
-  basis, coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage, writeGlb,
+  anchoredDiffuse, basis, coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage,
+  visibilityAt, writeGlb,
 } from './decode.mjs';
 
 const dir = tempDir();
@@ -102,6 +103,9 @@ before(async () => {
     ['--resolution', '512', '--rays', '16']);
   files.plane = bake(tiltedPlane(join(dir, 'plane_in.glb')), join(dir, 'plane.glb'),
     ['--resolution', '64', '--rays', '4096']);
+  // Every material of the helmet has a normal map: `auto` bakes the layer.
+  files.helmet = bake(join(sharedAssets, 'flight_helmet.glb'), join(dir, 'helmet.glb'),
+    ['--resolution', '512', '--quality', '32']);
   server = await serve(files.cornell);
   browser = await launch();
 });
@@ -350,4 +354,65 @@ test('aobake view serves the page and the file, nothing outside the viewer', asy
   assert.equal((await fetch(`${base}/%2e%2e/Cargo.toml`)).status, 404);
   assert.equal((await fetch(`${base}/aobake-lightmap.js`)).status, 200);
   await page.close();
+});
+
+describe('the visibility layer: normal maps drive the baked light', () => {
+  test('flight helmet: the shader equals the CPU formula on decoded textures', async () => {
+    const page = await open(browser, server.url);
+    const status = await pick(page, files.helmet);
+    assert.equal(status.problems.length, 0, status.message);
+    const layers = await page.evaluate(() => window.aobakeViewer.layers());
+    assert.ok(layers.length > 0 && layers.every((x) => x), `layers ${layers}`);
+    const glb = readGlb(readFileSync(files.helmet));
+    const ext = lightmapOf(glb).find((e) => e.visibility);
+    assert.equal(ext.visibility.length, 4);
+    const images = [ext.occlusion, ...ext.sh].map((r) => textureImage(glb, r.index));
+    const vImages = ext.visibility.map((r) => textureImage(glb, r.index));
+    await page.evaluate(() => window.aobakeViewer.view([0.25, 0.35, 0.45], [0, 0.3, 0]));
+    const pixels = await grid(page, 12);
+    const L = await page.evaluate(() => window.aobakeViewer.setEnvironment('lobe+x'));
+    const uv = await probe(page, 'uv', pixels);
+    const mapped = await probe(page, 'mapped', pixels);
+    const plain = await probe(page, 'irradiance', pixels);
+    const shading = await probe(page, 'shadingNormal', pixels);
+    const vertex = await probe(page, 'vertexNormal', pixels);
+    const unit = (p) => {
+      const v = [2 * p[0] - 1, 2 * p[1] - 1, 2 * p[2] - 1];
+      const len = Math.hypot(...v);
+      return v.map((x) => x / len);
+    };
+    let n = 0;
+    let worst = 0;
+    let moved = 0;
+    const scale = Math.max(...L.map((l) => Math.abs(l[0])));
+    for (let k = 0; k < pixels.length; k++) {
+      if ([uv, mapped, shading, vertex].some((r) => r[k][3] !== 1)) continue;
+      const c = coefficientsAt(images, ext, uv[k][0], uv[k][1]);
+      const v = visibilityAt(vImages, ext, uv[k][0], uv[k][1]);
+      const expected = anchoredDiffuse(c, v, L.map((l) => l[0]), unit(vertex[k]), unit(shading[k]));
+      worst = Math.max(worst, Math.abs(mapped[k][0] - expected));
+      if (Math.abs(mapped[k][0] - plain[k][0]) > 0.01 * scale) moved++;
+      n++;
+    }
+    assert.ok(n > 300, `${n} probe pixels on the helmet`);
+    const tol = 2e-3 * scale;
+    console.log(`# helmet lobe+x: ${n} pixels, max |GPU - CPU normal-mapped| = ${worst.toFixed(5)} (tolerance ${tol.toFixed(5)}); ${moved} moved by the normal map`);
+    assert.ok(worst <= tol, `max difference ${worst} > ${tol}`);
+    assert.ok(moved > n / 10, `the normal maps move only ${moved} of ${n} pixels`);
+    // Normal maps off: the shading normal is the vertex normal, and the
+    // formula gives c.L exactly.
+    await page.evaluate(() => window.aobakeViewer.setNormalMaps(false));
+    const off = await probe(page, 'mapped', pixels);
+    const offPlain = await probe(page, 'irradiance', pixels);
+    let worstOff = 0;
+    for (let k = 0; k < pixels.length; k++) {
+      if (off[k][3] !== 1) continue;
+      worstOff = Math.max(worstOff, Math.abs(off[k][0] - offPlain[k][0]));
+    }
+    console.log(`# helmet, normal maps off: max |mapped - c.L| = ${worstOff.toExponential(2)}`);
+    assert.ok(worstOff < 1e-4 * scale + 1e-6, `${worstOff}`);
+    await page.evaluate(() => window.aobakeViewer.setNormalMaps(true));
+    assert.deepEqual(page.errors, []);
+    await page.close();
+  });
 });

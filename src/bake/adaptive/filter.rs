@@ -152,12 +152,12 @@ impl FilterSupport<'_> {
     /// when `vertical`), each value weighted by `src_w` (the row pass's
     /// weight sums) if given: per receiver its filtered values and their
     /// weight sum; unfiltered receivers keep their own.
-    fn pass<'s>(
+    fn pass<'s, const N: usize>(
         &'s self,
-        src: &'s [[f32; 10]],
+        src: &'s [[f32; N]],
         src_w: Option<&'s [f32]>,
         vertical: bool,
-    ) -> impl IndexedParallelIterator<Item = ([f32; 10], f32)> + 's {
+    ) -> impl IndexedParallelIterator<Item = ([f32; N], f32)> + 's {
         (0..self.receivers.len())
             .into_par_iter()
             .with_min_len(256)
@@ -183,18 +183,38 @@ impl FilterSupport<'_> {
             .map(|(v, _)| (v[0], std::array::from_fn(|i| v[1 + i])))
             .unzip()
     }
+
+    /// The same filter, with the same weights, of any other per-receiver
+    /// values (the visibility layer's occluded share above the plane).
+    pub fn filter_values<const N: usize>(&self, values: Vec<[f32; N]>) -> Vec<[f32; N]> {
+        let (row_values, row_weights): (Vec<[f32; N]>, Vec<f32>) =
+            self.pass(&values, None, false).unzip();
+        drop(values);
+        self.pass(&row_values, Some(&row_weights), true)
+            .map(|(v, _)| v)
+            .collect()
+    }
 }
 
-/// A weighted mean of the filter's values (AO, then the 9 SH).
-#[derive(Default)]
-struct WeightedMean {
-    sum: [f32; 10],
+/// A weighted mean of the filter's values (AO, then the 9 SH; or the
+/// visibility layer's 16).
+struct WeightedMean<const N: usize> {
+    sum: [f32; N],
     weight: f32,
 }
 
-impl WeightedMean {
+impl<const N: usize> Default for WeightedMean<N> {
+    fn default() -> Self {
+        WeightedMean {
+            sum: [0.0; N],
+            weight: 0.0,
+        }
+    }
+}
+
+impl<const N: usize> WeightedMean<N> {
     #[inline]
-    fn add(&mut self, w: f32, v: [f32; 10]) {
+    fn add(&mut self, w: f32, v: [f32; N]) {
         for (a, v) in self.sum.iter_mut().zip(v) {
             *a += w * v;
         }
@@ -203,7 +223,7 @@ impl WeightedMean {
 
     /// The mean and the weight sum; none without weight.
     #[inline]
-    fn get(&self) -> Option<([f32; 10], f32)> {
+    fn get(&self) -> Option<([f32; N], f32)> {
         (self.weight > 0.0).then(|| (self.sum.map(|a| a / self.weight), self.weight))
     }
 }

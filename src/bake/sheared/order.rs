@@ -45,6 +45,7 @@ pub fn unpermuted(bake: Bake, stats: FilterStats, order: &[u32]) -> (Bake, Filte
             ao: back(&bake.ao, order),
             sh: back(&bake.sh, order),
             rays: bake.rays,
+            visibility: None,
         },
         FilterStats {
             brute_fraction: back(&stats.brute_fraction, order),
@@ -90,6 +91,7 @@ mod tests {
             ao: local.footprint.clone(),
             sh: local.footprint.iter().map(|&f| [f; SH_COUNT]).collect(),
             rays: 7,
+            visibility: None,
         };
         let stats = FilterStats {
             z_min: local.footprint.clone(),

@@ -112,6 +112,7 @@ pub fn filter_pass(
         ao: Vec::with_capacity(n),
         sh: Vec::with_capacity(n),
         rays: 0,
+        visibility: None,
     };
     for (r, res) in results.iter().enumerate() {
         bake.ao.push(res.ao);

@@ -1,0 +1,234 @@
+//! How well a bake relights normal-mapped normals: the visibility layer
+//! against the two fallbacks an engine has without it, measured against
+//! brute force at sampled texels.
+//!
+//!     cargo run --release --example visibility_error -- SCENE.glb [RES] [METHOD] [VISIBILITY] [ORDER] [TEXELS] [REF_RAYS]
+//!
+//! Defaults: 1024, adaptive, all, 3, 2000 texels, 4096 reference rays.
+//! The bake runs as the CLI's would; its 8-bit textures are decoded (the
+//! texel's own value). At each sampled texel (not inside geometry, on a
+//! primitive with the layer) a reference traces REF_RAYS stratified
+//! uniform rays around the vertex normal n on a stream of its own; for 56
+//! random L2 environments (6 near-directional) and tilts of 15, 30, 45 and
+//! 60 degrees in a random azimuth, the truth is (1/pi) Int V H(n.w)
+//! max(0, n'.w) L(w) dw over those rays, and each estimate's error is
+//! (estimate - truth) / (unoccluded irradiance over pi at n'):
+//!
+//! - `ignore`: c.L (the normal map ignored);
+//! - `open x AO`: the unoccluded irradiance at n' times the baked AO;
+//! - `layer`: the anchored formula c.L + E_C(n')/pi - E_C(n)/pi from v.
+//!
+//! Prints mean |error|, p95 |error| and mean error (bias) per tilt, and
+//! the bake's stage times.
+
+use aobake::pipeline;
+use aobake::relight::{Environment, anchored_diffuse};
+use aobake::sample::{Frame, mix64, receiver_seed, sobol_2d, uniform_hemisphere};
+use aobake::settings::VisibilityMode;
+use aobake::sh::{self, SH_COUNT, VIS_COUNT};
+use aobake::stage::StageTimer;
+use aobake::trace::offset_origin;
+use aobake::{Method, Settings};
+use glam::{Quat, Vec3};
+use rayon::prelude::*;
+
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 = mix64(self.0.wrapping_add(0x9e37_79b9_7f4a_7c15));
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn direction(&mut self) -> Vec3 {
+        let z = 2.0 * self.next() - 1.0;
+        let phi = 2.0 * std::f32::consts::PI * self.next();
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    }
+}
+
+/// A random positive environment's L2 coefficients: a constant plus
+/// clamped-cosine lobes (each projects as A_l Y_i(d)); `directional`: a
+/// faint constant and one strong lobe.
+fn environment(rng: &mut Rng, directional: bool) -> [f32; SH_COUNT] {
+    let mut l = [0.0f32; SH_COUNT];
+    let (ambient, lobes) = if directional {
+        (0.05, 1)
+    } else {
+        (0.2 + rng.next(), 3)
+    };
+    l[0] = ambient * (4.0 * std::f32::consts::PI).sqrt();
+    for _ in 0..lobes {
+        let d = rng.direction();
+        let w = if directional { 2.0 } else { rng.next() };
+        let y = sh::basis(d);
+        for i in 0..SH_COUNT {
+            l[i] += w * sh::CLAMPED_COSINE_BAND[sh::BAND[i]] * y[i];
+        }
+    }
+    l
+}
+
+fn decode(png: &[u8]) -> image::RgbaImage {
+    image::load_from_memory(png).expect("png").to_rgba8()
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let path = std::path::PathBuf::from(&args[0]);
+    let arg = |i: usize, d: &str| args.get(i).cloned().unwrap_or(d.to_string());
+    let res: u32 = arg(1, "1024").parse().unwrap();
+    let method = match arg(2, "adaptive").as_str() {
+        "mc" => Method::Mc,
+        _ => Method::Adaptive,
+    };
+    let visibility = match arg(3, "all").as_str() {
+        "auto" => VisibilityMode::Auto,
+        _ => VisibilityMode::All,
+    };
+    let order: u32 = arg(4, "3").parse().unwrap();
+    let texels: usize = arg(5, "2000").parse().unwrap();
+    let ref_rays: u32 = arg(6, "4096").parse().unwrap();
+
+    let scene = aobake::gltf::load(&path).expect("load");
+    let s = Settings {
+        size: aobake::atlas::AtlasSize::Resolution(res),
+        method,
+        visibility,
+        visibility_order: order,
+        progress: false,
+        ..Settings::default()
+    };
+    s.validate().expect("settings");
+    let mut timer = StageTimer::new();
+    let p = pipeline::prepare(&scene, &s, &mut timer).expect("prepare");
+    let passes = pipeline::bake_prepared(&p, &s, &mut timer).expect("bake");
+    let out = pipeline::output(&scene, &p, &passes, &s, None, &mut timer).expect("output");
+    for st in timer.stages() {
+        eprint!("{} {:.2}s, ", st.stage, st.seconds);
+    }
+    eprintln!();
+    let enc = &out.encoded;
+    let layer = enc
+        .visibility
+        .as_ref()
+        .expect("no visibility layer was baked");
+    let (ao_img, sh_img, v_img): (_, Vec<_>, Vec<_>) = (
+        image::load_from_memory(&enc.occlusion_png)
+            .unwrap()
+            .to_luma8(),
+        enc.sh_png.iter().map(|b| decode(b)).collect(),
+        layer.png.iter().map(|b| decode(b)).collect(),
+    );
+    let rc = &p.receivers;
+    let inside = passes.inside(&p);
+    let w = rc.width;
+    let decoded = |r: usize| {
+        let t = rc.texel[r];
+        let (x, y) = (t % w, t / w);
+        let ao = ao_img.get_pixel(x, y)[0] as f32 / 255.0;
+        let ch =
+            |imgs: &[image::RgbaImage], i: usize| imgs[i / 4].get_pixel(x, y)[i % 4] as f32 / 255.0;
+        let c: [f32; SH_COUNT] =
+            std::array::from_fn(|i| enc.sh_scale[i] * ch(&sh_img, i) + enc.sh_offset[i]);
+        let mut v = [0.0f32; VIS_COUNT];
+        for (i, vi) in v.iter_mut().enumerate().take(layer.scale.len()) {
+            *vi = layer.scale[i] * ch(&v_img, i) + layer.offset[i];
+        }
+        (ao, c, v)
+    };
+
+    // Sampled receivers (a fixed stride through a shuffled order).
+    let mut rng = Rng(12345);
+    let mut candidates: Vec<usize> = (0..rc.len())
+        .filter(|&r| inside.get(r).is_none_or(|&i| !i))
+        .collect();
+    for i in (1..candidates.len()).rev() {
+        let j = (rng.next() * (i + 1) as f32) as usize % (i + 1);
+        candidates.swap(i, j);
+    }
+    candidates.truncate(texels);
+
+    // Reference rays: stratified uniform around n, their visibility.
+    let visible: Vec<Vec<bool>> = candidates
+        .par_iter()
+        .map(|&r| {
+            let geo = rc.geo_normal[r];
+            let origin = offset_origin(rc.position[r], geo, rc.footprint[r]);
+            let frame = Frame::from_normal(rc.normal[r]);
+            let seed = receiver_seed(0x5eed, rc.texel[r] as u64, 7);
+            (0..ref_rays)
+                .map(|i| {
+                    let d = frame
+                        .to_world(uniform_hemisphere(sobol_2d(i, seed)))
+                        .normalize();
+                    p.tracer.receiver_visible(origin, geo, d, p.max_distance)
+                })
+                .collect()
+        })
+        .collect();
+
+    let envs: Vec<Environment> = (0..56)
+        .map(|k| Environment::new(environment(&mut rng, k < 6)))
+        .collect();
+    println!(
+        "{} at {res}, {:?}, order {order}, {} texels, {ref_rays} reference rays, 56 environments",
+        path.display(),
+        method,
+        candidates.len()
+    );
+    println!(
+        "| tilt | ignore: mean / p95 / bias | open x AO: mean / p95 / bias | layer: mean / p95 / bias |"
+    );
+    println!("|---|---|---|---|");
+    for tilt in [15.0f32, 30.0, 45.0, 60.0] {
+        let rows: Vec<[f32; 3]> = candidates
+            .par_iter()
+            .enumerate()
+            .flat_map_iter(|(k, &r)| {
+                let n = rc.normal[r];
+                let frame = Frame::from_normal(n);
+                let seed = receiver_seed(0x5eed, rc.texel[r] as u64, 7);
+                let mut rng = Rng(mix64(k as u64 ^ tilt.to_bits() as u64));
+                let (ao, c, v) = decoded(r);
+                let vis = &visible[k];
+                envs.iter()
+                    .map(|env| {
+                        let phi = 2.0 * std::f32::consts::PI * rng.next();
+                        let axis = frame.tangent * phi.cos() + frame.bitangent * phi.sin();
+                        let shading =
+                            Quat::from_axis_angle(axis.cross(n).normalize(), tilt.to_radians()) * n;
+                        let mut truth = 0.0f64;
+                        for (i, &seen) in vis.iter().enumerate() {
+                            if seen {
+                                let d = frame
+                                    .to_world(uniform_hemisphere(sobol_2d(i as u32, seed)))
+                                    .normalize();
+                                let l: f32 =
+                                    sh::basis(d).iter().zip(&env.l).map(|(y, l)| y * l).sum();
+                                truth += (shading.dot(d).max(0.0) * l) as f64;
+                            }
+                        }
+                        let truth = (truth * 2.0 / vis.len() as f64) as f32;
+                        let open = env.open_diffuse(shading);
+                        let e = |est: f32| (est - truth) / open;
+                        [
+                            e(env.baked_diffuse(&c)),
+                            e(open * ao),
+                            e(anchored_diffuse(env, &c, &v, n, shading)),
+                        ]
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .filter(|e| e.iter().all(|x| x.is_finite()))
+            .collect();
+        let stat = |k: usize| {
+            let mut a: Vec<f32> = rows.iter().map(|e| e[k].abs()).collect();
+            a.sort_by(f32::total_cmp);
+            let mean = a.iter().sum::<f32>() / a.len() as f32;
+            let p95 = a[(a.len() as f32 * 0.95) as usize];
+            let bias = rows.iter().map(|e| e[k]).sum::<f32>() / rows.len() as f32;
+            format!("{mean:.4} / {p95:.4} / {bias:+.4}")
+        };
+        println!("| {tilt} | {} | {} | {} |", stat(0), stat(1), stat(2));
+    }
+}
