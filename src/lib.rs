@@ -31,6 +31,7 @@ pub mod pipeline;
 pub mod relight;
 pub mod report;
 pub mod sample;
+pub mod seams;
 pub mod settings;
 pub mod sh;
 pub mod stage;

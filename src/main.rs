@@ -3,7 +3,7 @@
 use aobake::atlas::{AtlasSize, Packing};
 use aobake::gltf::write::OcclusionMode;
 use aobake::report::ReportSettings;
-use aobake::settings::VisibilityMode;
+use aobake::settings::{SeamMode, VisibilityMode};
 use aobake::stage::StageTimer;
 use aobake::{Method, Settings, UvSource};
 use clap::{Parser, ValueEnum};
@@ -59,6 +59,14 @@ enum UvArg {
     Generate,
     /// Reuse the lightmap UV set given by --uv-set.
     Existing,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SeamArg {
+    /// Least-squares stitching of smooth seams.
+    Stitch,
+    /// None.
+    Off,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -190,6 +198,9 @@ struct Cli {
     /// The visibility layer (SH of the visibility itself, for normal maps and glossy lobes): auto bakes it for primitives whose material has a normalTexture, roughnessFactor <= 0.5 or a clearcoat.
     #[arg(long, value_enum, default_value_t = VisibilityArg::Auto)]
     visibility: VisibilityArg,
+    /// Smooth seams (vertex normals within 10 degrees): stitch both sides by least squares, or leave them.
+    #[arg(long, value_enum, default_value_t = SeamArg::Stitch)]
+    seams: SeamArg,
     /// SH order of the visibility layer: 3 (16 coefficients) or 2 (9).
     #[arg(long, default_value_t = DEFAULTS.visibility_order)]
     visibility_order: u32,
@@ -383,6 +394,10 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             VisibilityArg::Off => VisibilityMode::Off,
         },
         visibility_order: cli.visibility_order,
+        seams: match cli.seams {
+            SeamArg::Stitch => SeamMode::Stitch,
+            SeamArg::Off => SeamMode::Off,
+        },
     };
     let report = aobake::run(&cli.input, &cli.output, &settings)?;
     if !cli.quiet {

@@ -19,9 +19,10 @@ use crate::file;
 use crate::geometry::BakeGeometry;
 use crate::gltf::write::{self, BakeRecord, OutputOptions};
 use crate::gltf::{self, Scene};
+use crate::seams::{self, SMOOTH_DEGREES, SeamReport};
 use crate::settings::{
-    DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, Settings, UvSource, VisibilityMode,
-    estimated_bytes_with,
+    DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, SeamMode, Settings, UvSource,
+    VisibilityMode, estimated_bytes_with,
 };
 use crate::stage::{StageTime, StageTimer, progress_bar, total};
 use crate::trace::Tracer;
@@ -57,6 +58,10 @@ pub struct Report {
     /// The visibility layer, when baked.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub visibility: Option<VisibilityReport>,
+    /// Seam count and length, the jumps before and after stitching, and
+    /// the solve (`--seams stitch`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seams: Option<SeamReport>,
     /// Rays cast over the seconds of the method's passes.
     pub rays_per_second: f64,
     pub max_distance: f64,
@@ -239,6 +244,8 @@ pub struct Output {
     pub encoded: Encoded,
     pub glb: Vec<u8>,
     pub warnings: Vec<String>,
+    /// The seams before and after stitching (`--seams stitch`).
+    pub seams: Option<SeamReport>,
 }
 
 /// Bakes `input` into `output` (written atomically; `input` is never touched).
@@ -309,6 +316,7 @@ fn bake_loaded(
         encoded,
         glb,
         warnings,
+        seams: seam_report,
     } = output(scene, &prepared, &passes, s, output_dir, timer)?;
     let texels_inside = passes.inside(&prepared).iter().filter(|&&x| x).count();
     let visibility_report = passes.bake.visibility.as_ref().map(|v| VisibilityReport {
@@ -353,6 +361,7 @@ fn bake_loaded(
             .as_ref()
             .map(|a| AdaptiveReport::new(&s.adaptive, a)),
         visibility: visibility_report,
+        seams: seam_report,
         rays_per_second: if pass_seconds > 0.0 {
             bake.rays as f64 / pass_seconds
         } else {
@@ -572,8 +581,46 @@ pub fn output(
         &receivers.texel,
         passes.inside(p),
     );
-    let lightmap = encode::lightmap(receivers, &passes.bake, &fill)?;
+    let mut lightmap = encode::lightmap(receivers, &passes.bake, &fill)?;
     timer.lap("dilate");
+    let seams = (s.seams == SeamMode::Stitch).then(|| {
+        let found = seams::find::smooth_seams(&p.geometry.receivers, &p.atlas, SMOOTH_DEGREES);
+        let (w, h) = (lightmap.width, lightmap.height);
+        let before = s
+            .debug_dir
+            .as_ref()
+            .map(|_| seams::jump_map(&found, w, h, &lightmap.ao));
+        let report = seams::stitch_page(
+            &found,
+            p.geometry.space.diagonal,
+            w,
+            h,
+            &mut lightmap.ao,
+            &mut lightmap.sh,
+            lightmap.visibility.as_deref_mut(),
+        );
+        let maps = before.map(|b| (b, seams::jump_map(&found, w, h, &lightmap.ao)));
+        (report, maps)
+    });
+    let seams = match seams {
+        Some((report, maps)) => {
+            if let (Some(dir), Some((before, after))) = (&s.debug_dir, maps) {
+                std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+                for (name, img) in [("seams_before", before), ("seams_after", after)] {
+                    let png = encode::png(
+                        lightmap.width,
+                        lightmap.height,
+                        &img,
+                        image::ExtendedColorType::L8,
+                    )?;
+                    file::write_atomic(&dir.join(format!("{name}.png")), &png)?;
+                }
+            }
+            timer.lap("seams");
+            Some(report)
+        }
+        None => None,
+    };
     let encoded = encode::encode(&lightmap, s.visibility_order)?;
     if let Some(dir) = &s.exr_dir {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -616,5 +663,6 @@ pub fn output(
         encoded,
         glb,
         warnings,
+        seams,
     })
 }

@@ -82,6 +82,17 @@ pub enum VisibilityMode {
     Off,
 }
 
+/// What happens at smooth seams (`--seams`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SeamMode {
+    /// Least-squares stitching of both sides ([`crate::seams`]).
+    #[default]
+    Stitch,
+    /// Each side keeps its own baked and dilated texels.
+    Off,
+}
+
 /// Where the lightmap UVs come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum UvSource {
@@ -123,6 +134,7 @@ pub struct Settings {
     /// SH order of the visibility layer written: 3 (16 coefficients) or
     /// 2 (9).
     pub visibility_order: u32,
+    pub seams: SeamMode,
 }
 
 impl Default for Settings {
@@ -147,6 +159,7 @@ impl Default for Settings {
             fill_inside: true,
             visibility: VisibilityMode::Auto,
             visibility_order: 3,
+            seams: SeamMode::Stitch,
         }
     }
 }

@@ -98,6 +98,13 @@ fn bakes(name: &str, resolution: u32) {
     let report =
         aobake::run(&path, &out, &settings(resolution)).unwrap_or_else(|e| panic!("{name}: {e}"));
     assert!(report.texels > 0);
+    // Seam stitching (the default) converged, and did not widen any jump.
+    let seams = report.seams.as_ref().expect("seam figures");
+    assert!(seams.solve.converged, "{name}: {:?}", seams.solve);
+    assert!(
+        seams.after.ao_mean <= seams.before.ao_mean + 1e-6,
+        "{name}: {seams:?}"
+    );
     assert_eq!(std::fs::read(&path).unwrap(), input_bytes, "input touched");
     let glb = std::fs::read(&out).unwrap();
     let (ij, ibin) = common::split(&input_bytes);

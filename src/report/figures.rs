@@ -158,6 +158,9 @@ pub struct SweepReport {
     pub runs: Vec<RunFigures>,
     pub equal_error: Option<EqualError>,
     pub stability: Vec<StabilityRow>,
+    /// The reference bake's smooth seams before and after stitching (the
+    /// output stages' `seams`, counted in the shared seconds).
+    pub reference_seams: Option<crate::seams::SeamReport>,
     /// Files written next to report.json.
     pub files: Vec<String>,
 }

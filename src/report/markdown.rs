@@ -37,6 +37,28 @@ pub fn markdown(r: &SweepReport) -> String {
         r.texels - r.texels_inside,
         r.texels_inside
     ));
+    if let Some(f) = &r.reference_seams {
+        line(format!(
+            "Seams (the reference bake's {} smooth seams, {:.1} world units): AO jump mean {:.4} -> {:.4}, p95 {:.4} -> {:.4}, share over 8/255 {:.1}% -> {:.1}%, SH RMS jump {:.4} -> {:.4} after stitching ({} unknowns, {} CG iterations at most, {}).\n",
+            f.seams,
+            f.length,
+            f.before.ao_mean,
+            f.after.ao_mean,
+            f.before.ao_p95,
+            f.after.ao_p95,
+            100.0 * f.before.ao_over_8bit,
+            100.0 * f.after.ao_over_8bit,
+            f.before.sh_rms_mean,
+            f.after.sh_rms_mean,
+            f.solve.unknowns,
+            f.solve.max_iterations,
+            if f.solve.converged {
+                "converged"
+            } else {
+                "NOT converged"
+            }
+        ));
+    }
     line("| run | end-to-end s | passes s | rays/texel | AO RMSE | AO bias | AO p99 | AO max | SH RMSE L0 | L1 | L2 | cells brute-forced (contact, no hit) |".into());
     line("|---|---|---|---|---|---|---|---|---|---|---|---|".into());
     for run in &r.runs {

@@ -114,14 +114,15 @@ pub fn sweep(
     let mut ref_timer = StageTimer::new();
     let reference = pipeline::bake_prepared(&prepared, &ref_settings, &mut ref_timer)?;
     let reference_seconds = ref_timer.total();
-    pipeline::output(
+    let reference_seams = pipeline::output(
         scene,
         &prepared,
         &reference,
         &ref_settings,
         None,
         &mut timer,
-    )?;
+    )?
+    .seams;
     pb.inc(1);
     let shared_seconds = timer.total();
     let shared_stages = timer.into_stages();
@@ -221,6 +222,7 @@ pub fn sweep(
         runs,
         equal_error,
         stability,
+        reference_seams,
         files: Vec::new(),
     };
     Ok(Sweep {

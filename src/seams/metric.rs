@@ -1,0 +1,165 @@
+//! Metric: how far the two sides of the seams disagree.
+//!
+//! In: the [`Seam`]s of a page, its size, the AO and SH images (row-major,
+//! row 0 at the top, as the textures). Out: [`SeamFigures`]: along every
+//! seam, points two per texel of its UV length (at least three), each side
+//! looked up bilinearly with the glTF conventions (texel centres at
+//! ((i + 0.5) / W, (j + 0.5) / H), clamp to edge), the absolute AO
+//! difference and the RMS over the 9 SH coefficients, weighted by world
+//! length: mean, 95th percentile and the share of length over one 8-bit
+//! step (8/255 is what a viewer sees as a line).
+
+use super::find::Seam;
+use crate::sh::SH_COUNT;
+use serde::Serialize;
+
+/// The four texels and weights of a bilinear lookup at `uv` (glTF
+/// conventions, clamp to edge).
+#[inline]
+pub fn taps(uv: [f32; 2], width: u32, height: u32) -> [(u32, f32); 4] {
+    let x = uv[0] * width as f32 - 0.5;
+    let y = uv[1] * height as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let clamp = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1);
+    let (xa, xb) = (clamp(x0, width), clamp(x0 + 1.0, width));
+    let (ya, yb) = (clamp(y0, height), clamp(y0 + 1.0, height));
+    [
+        (ya * width + xa, (1.0 - fx) * (1.0 - fy)),
+        (ya * width + xb, fx * (1.0 - fy)),
+        (yb * width + xa, (1.0 - fx) * fy),
+        (yb * width + xb, fx * fy),
+    ]
+}
+
+/// Sample parameters along a seam: `per_texel` per texel of its longer
+/// side's UV length, at least three, at the centres of equal parts.
+pub fn samples(seam: &Seam, width: u32, height: u32, per_texel: f32) -> impl Iterator<Item = f32> {
+    let count = ((seam.texels(width, height) * per_texel).ceil() as usize).max(3);
+    (0..count).map(move |k| (k as f32 + 0.5) / count as f32)
+}
+
+/// The seam figures of one state of the page.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct SeamFigures {
+    /// Mean |AO jump| over the seams' length.
+    pub ao_mean: f64,
+    pub ao_p95: f64,
+    /// Share of seam length where the AO jumps by more than 8/255.
+    pub ao_over_8bit: f64,
+    /// Mean over the length of the RMS jump of the 9 SH coefficients.
+    pub sh_rms_mean: f64,
+}
+
+/// [`SeamFigures`] of `seams` on images `ao` and `sh` of `width` x `height`.
+pub fn measure(
+    seams: &[Seam],
+    width: u32,
+    height: u32,
+    ao: &[f32],
+    sh: &[[f32; SH_COUNT]],
+) -> SeamFigures {
+    let look = |uv: [f32; 2]| {
+        let mut a = 0.0f64;
+        let mut s = [0.0f64; SH_COUNT];
+        for (t, w) in taps(uv, width, height) {
+            a += w as f64 * ao[t as usize] as f64;
+            for (s, c) in s.iter_mut().zip(sh[t as usize]) {
+                *s += w as f64 * c as f64;
+            }
+        }
+        (a, s)
+    };
+    // (AO jump, SH RMS jump, length weight) per sample point.
+    let mut points: Vec<(f64, f64, f64)> = Vec::new();
+    for seam in seams {
+        let n = samples(seam, width, height, 2.0).count();
+        let weight = seam.length as f64 / n as f64;
+        for t in samples(seam, width, height, 2.0) {
+            let (uva, uvb) = seam.at(t);
+            let ((aa, sa), (ab, sb)) = (look(uva), look(uvb));
+            let rms = (sa
+                .iter()
+                .zip(&sb)
+                .map(|(x, y)| (x - y).powi(2))
+                .sum::<f64>()
+                / SH_COUNT as f64)
+                .sqrt();
+            points.push(((aa - ab).abs(), rms, weight));
+        }
+    }
+    let total: f64 = points.iter().map(|p| p.2).sum();
+    if total <= 0.0 {
+        return SeamFigures::default();
+    }
+    let ao_mean = points.iter().map(|p| p.0 * p.2).sum::<f64>() / total;
+    let sh_rms_mean = points.iter().map(|p| p.1 * p.2).sum::<f64>() / total;
+    let ao_over_8bit = points
+        .iter()
+        .filter(|p| p.0 > 8.0 / 255.0)
+        .map(|p| p.2)
+        .sum::<f64>()
+        / total;
+    points.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let mut acc = 0.0;
+    let mut ao_p95 = points.last().map_or(0.0, |p| p.0);
+    for p in &points {
+        acc += p.2;
+        if acc >= 0.95 * total {
+            ao_p95 = p.0;
+            break;
+        }
+    }
+    SeamFigures {
+        ao_mean,
+        ao_p95,
+        ao_over_8bit,
+        sh_rms_mean,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn taps_follow_the_gltf_texel_centres() {
+        // The centre of texel (1, 2) of a 4 x 4 page: all weight on it.
+        let t = taps([1.5 / 4.0, 2.5 / 4.0], 4, 4);
+        let on: f32 = t.iter().filter(|(i, _)| *i == 2 * 4 + 1).map(|x| x.1).sum();
+        assert!((on - 1.0).abs() < 1e-6, "{t:?}");
+        // Half-way between texels 0 and 1 of row 0, on the row's centre.
+        let t = taps([1.0 / 4.0, 0.5 / 4.0], 4, 4);
+        let w = |i: u32| t.iter().filter(|x| x.0 == i).map(|x| x.1).sum::<f32>();
+        assert!((w(0) - 0.5).abs() < 1e-6 && (w(1) - 0.5).abs() < 1e-6);
+        // Outside the page: clamped to the edge texel.
+        let t = taps([-0.3, 1.2], 4, 4);
+        assert!(t.iter().all(|x| x.0 == 12 || x.1 == 0.0), "{t:?}");
+        assert!((t.iter().map(|x| x.1).sum::<f32>() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_constant_image_has_no_jump_and_a_step_has_its_height() {
+        let (w, h) = (8, 8);
+        let seam = Seam {
+            a: [[0.1, 0.1], [0.1, 0.9]],
+            b: [[0.9, 0.1], [0.9, 0.9]],
+            length: 2.0,
+        };
+        let flat = vec![0.5f32; 64];
+        let sh = vec![[0.1f32; SH_COUNT]; 64];
+        let f = measure(&[seam], w, h, &flat, &sh);
+        assert!(
+            f.ao_mean < 1e-6 && f.ao_p95 < 1e-6 && f.sh_rms_mean < 1e-6,
+            "{f:?}"
+        );
+        assert_eq!(f.ao_over_8bit, 0.0);
+        // The right half 0.2 brighter: every point jumps by 0.2.
+        let step: Vec<f32> = (0..64)
+            .map(|t| if t % 8 >= 4 { 0.7 } else { 0.5 })
+            .collect();
+        let f = measure(&[seam], w, h, &step, &sh);
+        assert!((f.ao_mean - 0.2).abs() < 1e-6 && (f.ao_p95 - 0.2).abs() < 1e-6);
+        assert_eq!(f.ao_over_8bit, 1.0);
+    }
+}

@@ -1,0 +1,112 @@
+//! Seams: the two sides of every smooth chart border agree.
+//!
+//! In: the receiver meshes and their atlas, the dilated float images of a
+//! page (AO, SH and the visibility layer). Out: the same images stitched
+//! along the page's smooth seams, and the seam figures before and after.
+//!
+//! 1. [`find`]: the seams, where two triangles share an edge in world space
+//!    but map it to different UVs, with vertex normals within
+//!    [`SMOOTH_DEGREES`] at both ends (creases keep their jump);
+//! 2. [`metric`]: the jump a viewer sees along them (bilinear lookups on
+//!    both sides, weighted by world length);
+//! 3. [`solve`]: least-squares stitching of the border and gutter texels
+//!    in the seams' bilinear footprints.
+
+pub mod find;
+pub mod metric;
+pub mod solve;
+
+pub use find::Seam;
+pub use metric::SeamFigures;
+pub use solve::StitchStats;
+
+use crate::sh::{SH_COUNT, VIS_COUNT};
+use serde::Serialize;
+
+/// Seams whose two sides' vertex normals agree within this angle at both
+/// ends are stitched (and measured); the seams issue's metric uses 10.
+pub const SMOOTH_DEGREES: f32 = 10.0;
+
+/// What stitching a page did, for the report.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct SeamReport {
+    pub seams: usize,
+    /// Total seam length, world units.
+    pub length: f64,
+    pub before: SeamFigures,
+    pub after: SeamFigures,
+    pub solve: StitchStats,
+}
+
+/// Stitches the page's images in place (AO clamped to [0, 1] after) along
+/// `seams` (bake units; `diagonal` turns lengths into world units).
+pub fn stitch_page(
+    seams: &[Seam],
+    diagonal: f64,
+    width: u32,
+    height: u32,
+    ao: &mut [f32],
+    sh: &mut [[f32; SH_COUNT]],
+    visibility: Option<&mut [[f32; VIS_COUNT]]>,
+) -> SeamReport {
+    let before = metric::measure(seams, width, height, ao, sh);
+    let channels = 1 + SH_COUNT + if visibility.is_some() { VIS_COUNT } else { 0 };
+    let (texels, values, solve) = {
+        let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
+        solve::stitch(seams, width, height, channels, |t, out| {
+            let t = t as usize;
+            out[0] = ao[t];
+            out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);
+            if let Some(v) = v {
+                out[1 + SH_COUNT..].copy_from_slice(&v[t]);
+            }
+        })
+    };
+    let mut visibility = visibility;
+    for (k, &t) in texels.iter().enumerate() {
+        let (t, at) = (t as usize, &values[k * channels..(k + 1) * channels]);
+        ao[t] = at[0].clamp(0.0, 1.0);
+        sh[t].copy_from_slice(&at[1..1 + SH_COUNT]);
+        if let Some(v) = visibility.as_deref_mut() {
+            v[t].copy_from_slice(&at[1 + SH_COUNT..]);
+        }
+    }
+    let after = metric::measure(seams, width, height, ao, sh);
+    SeamReport {
+        seams: seams.len(),
+        length: seams.iter().map(|s| s.length as f64).sum::<f64>() * diagonal,
+        before,
+        after,
+        solve,
+    }
+}
+
+/// A grey map of the page for `--debug-dir`: each texel under a seam
+/// point (on either side) shows the largest AO jump there, white at 0.1 or
+/// more; black elsewhere.
+pub fn jump_map(seams: &[Seam], width: u32, height: u32, ao: &[f32]) -> Vec<u8> {
+    let mut img = vec![0u8; (width * height) as usize];
+    let look = |uv: [f32; 2]| {
+        metric::taps(uv, width, height)
+            .iter()
+            .map(|&(t, w)| w * ao[t as usize])
+            .sum::<f32>()
+    };
+    let texel = |uv: [f32; 2]| {
+        let x = ((uv[0] * width as f32) as i64).clamp(0, width as i64 - 1);
+        let y = ((uv[1] * height as f32) as i64).clamp(0, height as i64 - 1);
+        (y * width as i64 + x) as usize
+    };
+    for seam in seams {
+        for t in metric::samples(seam, width, height, 2.0) {
+            let (a, b) = seam.at(t);
+            let jump = (look(a) - look(b)).abs();
+            let v = ((jump / 0.1).min(1.0) * 255.0).round() as u8;
+            for uv in [a, b] {
+                let i = texel(uv);
+                img[i] = img[i].max(v.max(1));
+            }
+        }
+    }
+    img
+}
