@@ -7,6 +7,8 @@
 //! Prints AO RMSE and SH RMSE over covered texels not inside geometry, all
 //! of them and those the stitch moved, for `--seams off` and `stitch`.
 
+#![allow(clippy::needless_range_loop)]
+
 use aobake::pipeline;
 use aobake::settings::SeamMode;
 use aobake::stage::StageTimer;
