@@ -4,8 +4,9 @@
 //!
 //!     cargo run --release --example seam_error -- SCENE.glb [RES] [REF_RAYS]
 //!
-//! Prints AO RMSE and SH RMSE over covered texels not inside geometry, all
-//! of them and those the stitch moved, for `--seams off` and `stitch`.
+//! Prints AO RMSE and SH RMSE over covered texels not inside geometry: the
+//! interior ones (their four neighbours covered, `seams::interior`), all of
+//! them, and those the stitch moved, for `--seams off` and `stitch`.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -64,10 +65,10 @@ fn main() {
     );
     for (name, out) in ["off", "stitch"].iter().zip(&outs) {
         let lm = &out.lightmap;
-        let rmse = |only_moved: bool| {
+        let rmse = |pick: &dyn Fn(usize) -> bool| {
             let (mut ao, mut sh, mut n) = (0.0f64, 0.0f64, 0usize);
             for r in 0..rc.len() {
-                if inside.get(r).copied().unwrap_or(false) || (only_moved && !moved[r]) {
+                if inside.get(r).copied().unwrap_or(false) || !pick(r) {
                     continue;
                 }
                 let t = rc.texel[r] as usize;
@@ -80,10 +81,13 @@ fn main() {
             }
             ((ao / n.max(1) as f64).sqrt(), (sh / n.max(1) as f64).sqrt())
         };
-        let (all_ao, all_sh) = rmse(false);
-        let (m_ao, m_sh) = rmse(true);
+        let interior =
+            |r: usize| aobake::seams::interior(&lm.covered, lm.width, lm.height, rc.texel[r]);
+        let (i_ao, i_sh) = rmse(&interior);
+        let (all_ao, all_sh) = rmse(&|_| true);
+        let (m_ao, m_sh) = rmse(&|r| moved[r]);
         println!(
-            "{name}: AO RMSE {all_ao:.5}, SH RMSE {all_sh:.5}; texels the stitch moves: AO {m_ao:.5}, SH {m_sh:.5}"
+            "{name}: interior texels AO RMSE {i_ao:.5}, SH {i_sh:.5}; all covered AO {all_ao:.5}, SH {all_sh:.5}; texels the stitch moves: AO {m_ao:.5}, SH {m_sh:.5}"
         );
         if let Some(f) = &out.seams {
             println!(

@@ -139,8 +139,19 @@ fn main() {
 
     // Sampled receivers (a fixed stride through a shuffled order).
     let mut rng = Rng(12345);
+    // AOBAKE_TEXELS=centres: only texels whose centre lies inside a
+    // triangle (what a checker that rasterizes texel centres samples);
+    // =interior: only interior texels (`seams::interior`, which stitching
+    // never moves).
+    let pick = std::env::var("AOBAKE_TEXELS").unwrap_or_default();
+    let lm = &out.lightmap;
     let mut candidates: Vec<usize> = (0..rc.len())
         .filter(|&r| inside.get(r).is_none_or(|&i| !i))
+        .filter(|&r| match pick.as_str() {
+            "centres" => rc.center_inside[r],
+            "interior" => aobake::seams::interior(&lm.covered, lm.width, lm.height, rc.texel[r]),
+            _ => true,
+        })
         .collect();
     for i in (1..candidates.len()).rev() {
         let j = (rng.next() * (i + 1) as f32) as usize % (i + 1);

@@ -9,6 +9,7 @@
 //! | atlas | [`atlas`] | receiver meshes -> [`atlas::Atlas`] and [`atlas::Receivers`] |
 //! | trace | [`trace`] | occluder triangles -> a BVH ([`trace::Tracer`]) |
 //! | bake | [`bake`] | receivers + tracer -> [`bake::Bake`] (AO and SH per receiver) |
+//! | seams | [`seams`] | dilated images -> the same, stitched at smooth seams |
 //! | encode | [`encode`] | bake + dilation map -> lightmap PNGs (and EXR) |
 //! | write | [`gltf::write`] | scene + atlas + PNGs -> the output GLB |
 //! | report | [`report`] | a scene -> error against time for each method |
@@ -16,7 +17,8 @@
 //!
 //! Beneath them, used by the stages and using none: [`geometry`] (the
 //! bake-space scene the atlas reads, no glTF syntax), [`sample`] (Sobol
-//! points, cells, frames), [`sh`] (the SH basis), [`stage`] (timer and
+//! points, cells, frames), [`sh`] (the SH basis, to order 3 for the
+//! visibility layer), [`relight`] (what an engine does with a bake), [`stage`] (timer and
 //! progress bars), [`file`] (atomic writes), [`error`]. [`settings`] is
 //! what a bake is told. See the README for the output format.
 

@@ -586,6 +586,9 @@ pub fn output(
     let seams = (s.seams == SeamMode::Stitch).then(|| {
         let found = seams::find::smooth_seams(&p.geometry.receivers, &p.atlas, SMOOTH_DEGREES);
         let (w, h) = (lightmap.width, lightmap.height);
+        let fixed: Vec<bool> = (0..w * h)
+            .map(|t| seams::interior(&lightmap.covered, w, h, t))
+            .collect();
         let before = s
             .debug_dir
             .as_ref()
@@ -595,6 +598,7 @@ pub fn output(
             p.geometry.space.diagonal,
             w,
             h,
+            &fixed,
             &mut lightmap.ao,
             &mut lightmap.sh,
             lightmap.visibility.as_deref_mut(),

@@ -23,15 +23,15 @@ use std::path::PathBuf;
 pub const MAX_BAKE_BYTES: u64 = 16 << 30;
 
 /// Per atlas texel, an upper bound of what the output stages hold at once:
-/// receiver (texel, position, two normals, footprint: 44 B), results (AO
+/// receiver (texel, position, two normals, footprint, centre inside: 45 B), results (AO
 /// and 9 SH: 40 B), the float lightmap with its coverage (41 B), the
 /// dilation map (4 B), BFS queue and encoded image rows (~24 B).
 const BYTES_PER_TEXEL: u64 = 160;
 
 /// Per atlas texel, what every method holds while it bakes: the receiver
-/// (44 B) and its results (40 B). A method's working arrays come on top of
+/// (45 B) and its results (40 B). A method's working arrays come on top of
 /// these, and are freed before the output stages.
-const BAKE_BYTES_PER_TEXEL: u64 = 44 + 40;
+const BAKE_BYTES_PER_TEXEL: u64 = 45 + 40;
 
 /// Default atlas page edge in texels.
 pub const DEFAULT_RESOLUTION: u32 = 1024;

@@ -36,6 +36,9 @@ pub struct Receivers {
     pub geo_normal: Vec<Vec3>,
     /// Texel edge length at the receiver, bake units.
     pub footprint: Vec<f32>,
+    /// The texel's centre lies inside a triangle (false: covered only
+    /// conservatively, the receiver on the chart's edge).
+    pub center_inside: Vec<bool>,
     /// Texels whose centre lies inside triangles of two different receiver
     /// meshes (overlapping UVs; always 0 for generated atlases), and the
     /// first such pair of receiver-mesh indices.
@@ -72,6 +75,7 @@ impl Receivers {
             normal: pick(&self.normal, order),
             geo_normal: pick(&self.geo_normal, order),
             footprint: pick(&self.footprint, order),
+            center_inside: pick(&self.center_inside, order),
             ..self.clone_header()
         }
     }
@@ -216,6 +220,7 @@ pub fn rasterize(meshes: &[ReceiverMesh], atlas: &Atlas) -> Receivers {
         out.normal.extend(r.normal);
         out.geo_normal.extend(r.geo_normal);
         out.footprint.extend(r.footprint);
+        out.center_inside.extend(r.center_inside);
     }
     out
 }
@@ -276,6 +281,7 @@ fn rasterize_band(tris: &[RasterTri], list: &[u32], band: u32, w: u32, h: u32) -
         out.normal.push(n);
         out.geo_normal.push(geo);
         out.footprint.push(t.footprint);
+        out.center_inside.push(d2 == 0.0);
     }
     out
 }

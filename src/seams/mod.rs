@@ -40,11 +40,15 @@ pub struct SeamReport {
 
 /// Stitches the page's images in place (AO clamped to [0, 1] after) along
 /// `seams` (bake units; `diagonal` turns lengths into world units).
+/// Texels marked `fixed` keep their values (the pipeline fixes the
+/// [`interior`] ones); the others (border and gutter texels) move.
+#[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
     diagonal: f64,
     width: u32,
     height: u32,
+    fixed: &[bool],
     ao: &mut [f32],
     sh: &mut [[f32; SH_COUNT]],
     visibility: Option<&mut [[f32; VIS_COUNT]]>,
@@ -53,7 +57,8 @@ pub fn stitch_page(
     let channels = 1 + SH_COUNT + if visibility.is_some() { VIS_COUNT } else { 0 };
     let (texels, values, solve) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
-        solve::stitch(seams, width, height, channels, |t, out| {
+        let fixed = |t: u32| fixed[t as usize];
+        solve::stitch(seams, width, height, channels, fixed, |t, out| {
             let t = t as usize;
             out[0] = ao[t];
             out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);
@@ -109,4 +114,18 @@ pub fn jump_map(seams: &[Seam], width: u32, height: u32, ao: &[f32]) -> Vec<u8> 
         }
     }
     img
+}
+
+/// Whether texel `t` is interior: covered (a receiver of its own) and so
+/// is every texel of its 3 x 3 neighbourhood. Stitching moves only the
+/// others (border and gutter texels), so the receivers' own estimates
+/// inside every chart stay as baked. (Fixing every texel whose centre lies
+/// inside a triangle instead leaves too little to move: Sponza 1024, AO
+/// jump mean 0.0149, p95 0.064, 8.8% over 8/255.)
+pub fn interior(covered: &[bool], width: u32, height: u32, t: u32) -> bool {
+    let (x, y) = (t % width, t / width);
+    if x == 0 || y == 0 || x + 1 >= width || y + 1 >= height {
+        return false;
+    }
+    (y - 1..=y + 1).all(|j| (x - 1..=x + 1).all(|i| covered[(j * width + i) as usize]))
 }

@@ -8,7 +8,8 @@
 //! the least-squares sense, each texel kept near its baked value: minimise
 //! Sum_t (x_t - x0_t)^2 + lambda^2 Sum_points (lookup_A(x) - lookup_B(x))^2
 //! per channel. Only texels in the seams' bilinear footprints are unknowns
-//! (border and gutter texels); the normal equations (I + lambda^2 C^T C) x =
+//! (border and gutter texels; the caller may fix others, whose values
+//! then enter the constraints as constants); the normal equations (I + lambda^2 C^T C) x =
 //! x0 split into independent components (texels tied by constraints), each
 //! solved by Jacobi-preconditioned conjugate gradients, in parallel.
 
@@ -20,10 +21,14 @@ use std::collections::HashMap;
 
 /// lambda: the weight of a seam constraint against one texel's data term.
 /// Larger agrees better and converges slower (the system's condition
-/// grows with lambda^2). Sponza 1024 (AO jump mean / p95 after, the
-/// stage's seconds, CG iterations): lambda 10: 0.0015 / 0.0050, 1.68 s,
-/// 260; 4: 0.0042 / 0.0128, 0.89 s, 105; 2: 0.0113 / 0.0352, 0.49 s, 54.
-pub const SEAM_WEIGHT: f64 = 4.0;
+/// grows with lambda^2). With interior texels fixed (AO jump mean / p95 /
+/// share over 8/255 after, the stage's seconds): Sponza 1024, lambda 5:
+/// 0.0041 / 0.0135 / 0.8%, 0.75 s; 8: 0.0026 / 0.0085 / 0.7%, 1.12 s
+/// (over the 10% of the bake's time); flight helmet 1024, lambda 5: 0.0068
+/// / 0.0255 / 3.9%; 8: 0.0056 / 0.0212 / 3.4%. (All texels free, lambda
+/// 4: Sponza 0.0042 / 0.0128 / 0.6%, but interior texels' AO RMSE against
+/// a reference 0.0059 -> 0.0214.)
+pub const SEAM_WEIGHT: f64 = 5.0;
 
 /// Constraint points per texel of seam length.
 pub const POINTS_PER_TEXEL: f32 = 3.0;
@@ -47,12 +52,25 @@ pub struct StitchStats {
     pub converged: bool,
 }
 
+/// A constraint's free part in a component's own indices.
+type LocalRow = Vec<(usize, f64)>;
+
 /// One constraint: unknowns and weights (side A positive, side B
-/// negative), duplicates merged.
-type Row = Vec<(u32, f64)>;
+/// negative), duplicates merged; and the fixed texels it reads, with
+/// theirs.
+#[derive(Default)]
+struct Row {
+    free: Vec<(u32, f64)>,
+    fixed: Vec<(u32, f64)>,
+}
 
 /// The stitched values of a `width` x `height` page along `seams`:
 /// `baked(texel, out)` writes a texel's `channels` baked values into `out`.
+/// Every texel's data term weighs 1: a heavier one for covered texels (they
+/// hold their receivers' estimates, the gutter only copies) measured no
+/// better at covered texels and worse at the seams (Sponza 1024, covered
+/// weight 4: AO RMSE of the moved covered texels 0.0894 against 0.0997,
+/// seam jump mean 0.0108 against 0.0042; weight 16: 0.0696, 0.0282).
 /// Returns the texels that are unknowns, their new values (`channels`
 /// each, in the same order) and what the solve did.
 pub fn stitch(
@@ -60,6 +78,7 @@ pub fn stitch(
     width: u32,
     height: u32,
     channels: usize,
+    fixed: impl Fn(u32) -> bool,
     baked: impl Fn(u32, &mut [f32]) + Sync,
 ) -> (Vec<u32>, Vec<f32>, StitchStats) {
     // Constraint rows over texels, then over unknowns.
@@ -69,7 +88,7 @@ pub fn stitch(
     for seam in seams {
         for t in samples(seam, width, height, POINTS_PER_TEXEL) {
             let (uva, uvb) = seam.at(t);
-            let mut row: Row = Vec::with_capacity(8);
+            let mut row = Row::default();
             let sides = taps(uva, width, height)
                 .into_iter()
                 .map(|(t, w)| (t, w as f64))
@@ -82,18 +101,23 @@ pub fn stitch(
                 if w == 0.0 {
                     continue;
                 }
-                let next = texel_of.len() as u32;
-                let u = *unknown_of.entry(texel).or_insert_with(|| {
-                    texel_of.push(texel);
-                    next
-                });
-                match row.iter_mut().find(|e| e.0 == u) {
+                let (list, id) = if fixed(texel) {
+                    (&mut row.fixed, texel)
+                } else {
+                    let next = texel_of.len() as u32;
+                    let u = *unknown_of.entry(texel).or_insert_with(|| {
+                        texel_of.push(texel);
+                        next
+                    });
+                    (&mut row.free, u)
+                };
+                match list.iter_mut().find(|e| e.0 == id) {
                     Some(e) => e.1 += w,
-                    None => row.push((u, w)),
+                    None => list.push((id, w)),
                 }
             }
-            row.retain(|e| e.1.abs() > 1e-12);
-            if !row.is_empty() {
+            row.free.retain(|e| e.1.abs() > 1e-12);
+            if !row.free.is_empty() {
                 rows.push(row);
             }
         }
@@ -116,8 +140,8 @@ pub fn stitch(
         i
     }
     for row in &rows {
-        let first = root(&mut parent, row[0].0);
-        for &(u, _) in &row[1..] {
+        let first = root(&mut parent, row.free[0].0);
+        for &(u, _) in &row.free[1..] {
             let r = root(&mut parent, u);
             if r != first {
                 parent[r as usize] = first;
@@ -136,7 +160,7 @@ pub fn stitch(
     }
     let mut component_rows: Vec<Vec<usize>> = vec![Vec::new(); members.len()];
     for (i, row) in rows.iter().enumerate() {
-        let r = root(&mut parent, row[0].0);
+        let r = root(&mut parent, row.free[0].0);
         component_rows[component_of[&r]].push(i);
     }
 
@@ -147,19 +171,33 @@ pub fn stitch(
         .map(|(members, row_ids)| {
             let local: HashMap<u32, usize> =
                 members.iter().enumerate().map(|(i, &u)| (u, i)).collect();
-            let rows: Vec<Vec<(usize, f64)>> = row_ids
+            let c = channels;
+            // Each row's free part in local indices, and what its fixed
+            // texels add per channel.
+            let mut value = vec![0.0f32; c];
+            let (rows, constants): (Vec<LocalRow>, Vec<Vec<f64>>) = row_ids
                 .iter()
-                .map(|&r| rows[r].iter().map(|&(u, w)| (local[&u], w)).collect())
-                .collect();
+                .map(|&r| {
+                    let free = rows[r].free.iter().map(|&(u, w)| (local[&u], w)).collect();
+                    let mut k = vec![0.0f64; c];
+                    for &(t, w) in &rows[r].fixed {
+                        baked(t, &mut value);
+                        for (k, v) in k.iter_mut().zip(&value) {
+                            *k += w * *v as f64;
+                        }
+                    }
+                    (free, k)
+                })
+                .unzip();
             let m = members.len();
             let lambda2 = SEAM_WEIGHT * SEAM_WEIGHT;
+            let texels: Vec<u32> = members.iter().map(|&u| texel_of[u as usize]).collect();
             let mut diagonal = vec![1.0f64; m];
             for row in &rows {
                 for &(i, w) in row {
                     diagonal[i] += lambda2 * w * w;
                 }
             }
-            let c = channels;
             let apply = |x: &[f64], y: &mut [f64]| {
                 y.copy_from_slice(x);
                 let mut d = vec![0.0f64; c];
@@ -177,13 +215,22 @@ pub fn stitch(
                     }
                 }
             };
-            let texels: Vec<u32> = members.iter().map(|&u| texel_of[u as usize]).collect();
             let mut start = vec![0.0f32; m * c];
             for (i, &t) in texels.iter().enumerate() {
                 baked(t, &mut start[i * c..(i + 1) * c]);
             }
-            let b: Vec<f64> = start.iter().map(|&v| v as f64).collect();
-            let (x, most, converged) = conjugate_gradients(&apply, &diagonal, &b, c);
+            let x0: Vec<f64> = start.iter().map(|&v| v as f64).collect();
+            // Right-hand side: x0 less lambda^2 C^T k (the fixed texels'
+            // part of each constraint).
+            let mut b = x0.clone();
+            for (row, k) in rows.iter().zip(&constants) {
+                for &(i, w) in row {
+                    for (bk, kk) in b[i * c..(i + 1) * c].iter_mut().zip(k) {
+                        *bk -= lambda2 * w * kk;
+                    }
+                }
+            }
+            let (x, most, converged) = conjugate_gradients(&apply, &diagonal, &b, &x0, c);
             let out: Vec<f32> = x.iter().map(|&v| v as f32).collect();
             (texels, out, most, converged)
         })
@@ -208,7 +255,7 @@ pub fn stitch(
 /// Solves M X = B for symmetric positive definite M and `channels`
 /// right-hand sides at once (`b`, `x`: row-major, `channels` per unknown;
 /// `apply(x, y)`: Y = M X for all channels), Jacobi-preconditioned by
-/// `diagonal`, from X = B (the baked values). Each channel has its own
+/// `diagonal`, from `start` (the baked values). Each channel has its own
 /// step lengths and stops at [`TOLERANCE`] of its right-hand side. Returns
 /// X, the iterations the slowest channel took and whether every channel
 /// converged.
@@ -216,6 +263,7 @@ pub fn conjugate_gradients(
     apply: &impl Fn(&[f64], &mut [f64]),
     diagonal: &[f64],
     b: &[f64],
+    start: &[f64],
     channels: usize,
 ) -> (Vec<f64>, usize, bool) {
     let n = diagonal.len();
@@ -227,7 +275,7 @@ pub fn conjugate_gradients(
     // per unknown (a channel that is ~0 everywhere).
     let floor = 1e-6 / TOLERANCE * (n as f64).sqrt();
     let norm_b: Vec<f64> = (0..c).map(|k| dot(b, b, k).sqrt().max(floor)).collect();
-    let mut x = b.to_vec();
+    let mut x = start.to_vec();
     let mut ax = vec![0.0; n * c];
     apply(&x, &mut ax);
     let mut r: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
@@ -240,7 +288,7 @@ pub fn conjugate_gradients(
         for k in 0..c {
             let norm_r = dot(&r, &r, k).sqrt();
             if !norm_r.is_finite() {
-                return (b.to_vec(), iteration, false);
+                return (start.to_vec(), iteration, false);
             }
             done[k] |= norm_r <= TOLERANCE * norm_b[k];
         }
@@ -286,7 +334,7 @@ mod tests {
             y[0] = 4.0 * x[0] + x[1];
             y[1] = x[0] + 3.0 * x[1];
         };
-        let (x, _, ok) = conjugate_gradients(&apply, &[4.0, 3.0], &[1.0, 2.0], 1);
+        let (x, _, ok) = conjugate_gradients(&apply, &[4.0, 3.0], &[1.0, 2.0], &[1.0, 2.0], 1);
         assert!(ok);
         assert!((x[0] - 1.0 / 11.0).abs() < 1e-9 && (x[1] - 7.0 / 11.0).abs() < 1e-9);
     }
@@ -314,7 +362,14 @@ mod tests {
         let sh = vec![[0.0f32; crate::sh::SH_COUNT]; (w * h) as usize];
         let jump = |v: &[f32]| super::super::metric::measure(&[seam], w, h, v, &sh);
         assert!(jump(&values).ao_mean > 0.08);
-        let (texels, new, stats) = stitch(&[seam], w, h, 1, |t, out| out[0] = values[t as usize]);
+        let (texels, new, stats) = stitch(
+            &[seam],
+            w,
+            h,
+            1,
+            |_| false,
+            |t, out| out[0] = values[t as usize],
+        );
         assert!(stats.converged && stats.unknowns > 0, "{stats:?}");
         for (t, v) in texels.iter().zip(new) {
             values[*t as usize] = v;

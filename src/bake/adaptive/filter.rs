@@ -363,6 +363,7 @@ mod tests {
             normal: keep.iter().map(|&t| full.normal[t]).collect(),
             geo_normal: keep.iter().map(|&t| full.geo_normal[t]).collect(),
             footprint: keep.iter().map(|&t| full.footprint[t]).collect(),
+            center_inside: vec![true; keep.len()],
             ..full
         };
         let uniform = Uniform::new(&rc, 2.0, f32::INFINITY);

@@ -227,6 +227,7 @@ pub fn flat_grid(side: u32) -> Receivers {
         normal: vec![Vec3::Z; n],
         geo_normal: vec![Vec3::Z; n],
         footprint: vec![1.0; n],
+        center_inside: vec![true; n],
         overlapping_texels: 0,
         first_overlap: None,
     }

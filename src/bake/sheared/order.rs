@@ -74,6 +74,7 @@ mod tests {
             normal: vec![Vec3::Z; texels.len()],
             geo_normal: vec![Vec3::Z; texels.len()],
             footprint: texels.iter().map(|&t| t as f32).collect(),
+            center_inside: vec![true; texels.len()],
             texel: texels,
             ..Default::default()
         };
