@@ -242,4 +242,68 @@ fn main() {
         };
         println!("| {tilt} | {} | {} | {} |", stat(0), stat(1), stat(2));
     }
+
+    // Specular occlusion of a lobe about the tilted normal (a view along
+    // n'), 30 degrees: the truth is Int V H lobe L / Int H lobe L over the
+    // reference rays, lobe = max(0, R.w)^s, the Phong lobe whose zonal
+    // factors relight::lobe_bands uses; error = estimate - truth.
+    println!(
+        "\n| roughness | AO as specular occlusion: mean / p95 / bias | layer: mean / p95 / bias |"
+    );
+    println!("|---|---|---|");
+    for roughness in [0.6f32, 0.8] {
+        let alpha = roughness * roughness;
+        let s = (2.0 / (alpha * alpha) - 2.0).max(1e-3);
+        let rows: Vec<[f32; 2]> = candidates
+            .par_iter()
+            .enumerate()
+            .flat_map_iter(|(k, &r)| {
+                let n = rc.normal[r];
+                let frame = Frame::from_normal(n);
+                let seed = receiver_seed(0x5eed, rc.texel[r] as u64, 7);
+                let mut rng = Rng(mix64(k as u64 ^ 0x5bec));
+                let (ao, _, v) = decoded(r);
+                let vis = &visible[k];
+                envs.iter()
+                    .filter_map(|env| {
+                        let phi = 2.0 * std::f32::consts::PI * rng.next();
+                        let axis = frame.tangent * phi.cos() + frame.bitangent * phi.sin();
+                        let reflected =
+                            Quat::from_axis_angle(axis.cross(n).normalize(), 30f32.to_radians())
+                                * n;
+                        let (mut seen, mut all) = (0.0f64, 0.0f64);
+                        for (i, &visible) in vis.iter().enumerate() {
+                            let d = frame
+                                .to_world(uniform_hemisphere(sobol_2d(i as u32, seed)))
+                                .normalize();
+                            let lobe = reflected.dot(d).max(0.0).powf(s);
+                            let l: f32 = sh::basis(d).iter().zip(&env.l).map(|(y, l)| y * l).sum();
+                            let w = (lobe * l) as f64;
+                            all += w;
+                            if visible {
+                                seen += w;
+                            }
+                        }
+                        (all > 1e-9).then(|| {
+                            let truth = (seen / all) as f32;
+                            let layer = aobake::relight::specular_occlusion(
+                                env, &v, n, reflected, roughness,
+                            );
+                            [ao - truth, layer - truth]
+                        })
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .filter(|e| e.iter().all(|x| x.is_finite()))
+            .collect();
+        let stat = |k: usize| {
+            let mut a: Vec<f32> = rows.iter().map(|e| e[k].abs()).collect();
+            a.sort_by(f32::total_cmp);
+            let mean = a.iter().sum::<f32>() / a.len() as f32;
+            let p95 = a[(a.len() as f32 * 0.95) as usize];
+            let bias = rows.iter().map(|e| e[k]).sum::<f32>() / rows.len() as f32;
+            format!("{mean:.4} / {p95:.4} / {bias:+.4}")
+        };
+        println!("| {roughness} | {} | {} |", stat(0), stat(1));
+    }
 }
