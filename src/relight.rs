@@ -215,55 +215,31 @@ mod tests {
     /// Brute force over a fine grid of directions: Int V H(n.w) max(0,
     /// m.w) L(w) dw / pi for a visibility V given as a function.
     fn brute(l: &[f32; SH_COUNT], n: Vec3, m: Vec3, vis: impl Fn(Vec3) -> bool) -> f64 {
-        let (nt, np) = (400, 800);
         let mut s = 0.0;
-        for i in 0..nt {
-            let theta = (i as f64 + 0.5) / nt as f64 * std::f64::consts::PI;
-            for j in 0..np {
-                let phi = (j as f64 + 0.5) / np as f64 * 2.0 * std::f64::consts::PI;
-                let w = Vec3::new(
-                    (theta.sin() * phi.cos()) as f32,
-                    (theta.sin() * phi.sin()) as f32,
-                    theta.cos() as f32,
-                );
-                if n.dot(w) > 0.0 && vis(w) {
-                    let lw: f32 = sh::basis(w).iter().zip(l).map(|(y, l)| y * l).sum();
-                    s += (m.dot(w).max(0.0) * lw) as f64 * theta.sin();
-                }
+        sh::for_each_direction(|w, da| {
+            if n.dot(w) > 0.0 && vis(w) {
+                let lw: f32 = sh::basis(w).iter().zip(l).map(|(y, l)| y * l).sum();
+                s += (m.dot(w).max(0.0) * lw) as f64 * da;
             }
-        }
-        s * (std::f64::consts::PI / nt as f64) * (2.0 * std::f64::consts::PI / np as f64)
-            / std::f64::consts::PI
+        });
+        s / std::f64::consts::PI
     }
 
     /// v and c of a receiver with normal n and visibility `vis`, projected
     /// on the same grid.
     fn project(n: Vec3, vis: impl Fn(Vec3) -> bool) -> ([f32; SH_COUNT], [f32; VIS_COUNT]) {
-        let (nt, np) = (300, 600);
         let (mut c, mut v) = ([0.0f64; SH_COUNT], [0.0f64; VIS_COUNT]);
-        for i in 0..nt {
-            let theta = (i as f64 + 0.5) / nt as f64 * std::f64::consts::PI;
-            for j in 0..np {
-                let phi = (j as f64 + 0.5) / np as f64 * 2.0 * std::f64::consts::PI;
-                let w = Vec3::new(
-                    (theta.sin() * phi.cos()) as f32,
-                    (theta.sin() * phi.sin()) as f32,
-                    theta.cos() as f32,
-                );
-                if n.dot(w) > 0.0 && vis(w) {
-                    let da = theta.sin()
-                        * (std::f64::consts::PI / nt as f64)
-                        * (2.0 * std::f64::consts::PI / np as f64);
-                    let y = sh::basis16(w);
-                    for k in 0..VIS_COUNT {
-                        v[k] += y[k] as f64 * da;
-                    }
-                    for k in 0..SH_COUNT {
-                        c[k] += (n.dot(w) * y[k]) as f64 * da / std::f64::consts::PI;
-                    }
+        sh::for_each_direction(|w, da| {
+            if n.dot(w) > 0.0 && vis(w) {
+                let y = sh::basis16(w);
+                for k in 0..VIS_COUNT {
+                    v[k] += y[k] as f64 * da;
+                }
+                for k in 0..SH_COUNT {
+                    c[k] += (n.dot(w) * y[k]) as f64 * da / std::f64::consts::PI;
                 }
             }
-        }
+        });
         (c.map(|x| x as f32), v.map(|x| x as f32))
     }
 

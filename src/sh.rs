@@ -314,27 +314,56 @@ pub fn from_sums(
     std::array::from_fn(|i| open[i] + share[i])
 }
 
+/// For tests of this crate: every direction of a fine latitude-longitude
+/// grid over the sphere (400 x 800 midpoints) with its solid angle.
+#[cfg(test)]
+pub(crate) fn for_each_direction(mut f: impl FnMut(Vec3, f64)) {
+    let (nt, np) = (400, 800);
+    let dtheta = std::f64::consts::PI / nt as f64;
+    let dphi = 2.0 * std::f64::consts::PI / np as f64;
+    for i in 0..nt {
+        let theta = (i as f64 + 0.5) * dtheta;
+        for j in 0..np {
+            let phi = (j as f64 + 0.5) * dphi;
+            let w = Vec3::new(
+                (theta.sin() * phi.cos()) as f32,
+                (theta.sin() * phi.sin()) as f32,
+                theta.cos() as f32,
+            );
+            f(w, theta.sin() * dtheta * dphi);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     /// Integrates f over the sphere by a fine latitude-longitude quadrature.
     fn integrate(f: impl Fn(Vec3) -> f64) -> f64 {
-        let (nt, np) = (400, 800);
         let mut s = 0.0;
-        for i in 0..nt {
-            let theta = (i as f64 + 0.5) / nt as f64 * std::f64::consts::PI;
-            for j in 0..np {
-                let phi = (j as f64 + 0.5) / np as f64 * 2.0 * std::f64::consts::PI;
-                let w = Vec3::new(
-                    (theta.sin() * phi.cos()) as f32,
-                    (theta.sin() * phi.sin()) as f32,
-                    theta.cos() as f32,
-                );
-                s += f(w) * theta.sin();
-            }
-        }
-        s * (std::f64::consts::PI / nt as f64) * (2.0 * std::f64::consts::PI / np as f64)
+        for_each_direction(|w, da| s += f(w) * da);
+        s
+    }
+
+    /// Shading normals tilted from `n` by 3, 40, 90 and 150 degrees, about
+    /// different axes: (degrees, geometric normal).
+    fn tilted_geometric_normals(n: Vec3) -> Vec<(f32, Vec3)> {
+        [
+            (Vec3::X, 3.0f32),
+            (Vec3::new(1.0, 1.0, 0.0), 40.0),
+            (Vec3::new(0.0, 1.0, -1.0), 90.0),
+            (Vec3::Z, 150.0),
+        ]
+        .into_iter()
+        .map(|(axis, degrees)| {
+            let axis = axis.cross(n).normalize();
+            (
+                degrees,
+                glam::Quat::from_axis_angle(axis, degrees.to_radians()) * n,
+            )
+        })
+        .collect()
     }
 
     #[test]
@@ -361,15 +390,7 @@ mod tests {
     #[test]
     fn below_plane_matches_numeric_projection() {
         let n = Vec3::new(0.3, -0.5, 0.8).normalize();
-        // Tilts of 3, 40, 90 and 150 degrees, about different axes.
-        for (axis, degrees) in [
-            (Vec3::X, 3.0f32),
-            (Vec3::new(1.0, 1.0, 0.0), 40.0),
-            (Vec3::new(0.0, 1.0, -1.0), 90.0),
-            (Vec3::Z, 150.0),
-        ] {
-            let axis = axis.cross(n).normalize();
-            let geo = glam::Quat::from_axis_angle(axis, degrees.to_radians()) * n;
+        for (degrees, geo) in tilted_geometric_normals(n) {
             let c = below_plane(n, geo);
             for (i, &ci) in c.iter().enumerate() {
                 let v = integrate(|w| {
@@ -504,14 +525,7 @@ mod tests {
     #[test]
     fn below_plane_visibility_matches_numeric_projection() {
         let n = Vec3::new(0.3, -0.5, 0.8).normalize();
-        for (axis, degrees) in [
-            (Vec3::X, 3.0f32),
-            (Vec3::new(1.0, 1.0, 0.0), 40.0),
-            (Vec3::new(0.0, 1.0, -1.0), 90.0),
-            (Vec3::Z, 150.0),
-        ] {
-            let axis = axis.cross(n).normalize();
-            let geo = glam::Quat::from_axis_angle(axis, degrees.to_radians()) * n;
+        for (degrees, geo) in tilted_geometric_normals(n) {
             let v = below_plane_visibility(n, geo);
             for (i, &vi) in v.iter().enumerate() {
                 let num = integrate(|w| {
