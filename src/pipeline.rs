@@ -586,24 +586,22 @@ pub fn output(
     let seams = (s.seams == SeamMode::Stitch).then(|| {
         let found = seams::find::smooth_seams(&p.geometry.receivers, &p.atlas, SMOOTH_DEGREES);
         let (w, h) = (lightmap.width, lightmap.height);
-        let fixed: Vec<bool> = (0..w * h)
-            .map(|t| seams::interior(&lightmap.covered, w, h, t))
-            .collect();
-        let before = s
-            .debug_dir
-            .as_ref()
-            .map(|_| seams::jump_map(&found, w, h, &lightmap.ao));
+        let map = |lm: &Lightmap| {
+            let points = seams::metric::points(&found, w, h, &lm.ao, &lm.sh);
+            seams::jump_map(&points, w, h)
+        };
+        let before = s.debug_dir.as_ref().map(|_| map(&lightmap));
         let report = seams::stitch_page(
             &found,
             p.geometry.space.diagonal,
             w,
             h,
-            &fixed,
+            &lightmap.covered,
             &mut lightmap.ao,
             &mut lightmap.sh,
             lightmap.visibility.as_deref_mut(),
         );
-        let maps = before.map(|b| (b, seams::jump_map(&found, w, h, &lightmap.ao)));
+        let maps = before.map(|b| (b, map(&lightmap)));
         (report, maps)
     });
     let seams = match seams {

@@ -51,14 +51,29 @@ pub struct SeamFigures {
     pub sh_rms_mean: f64,
 }
 
-/// [`SeamFigures`] of `seams` on images `ao` and `sh` of `width` x `height`.
-pub fn measure(
+/// One point of the metric on a seam: its UV on each side, the jumps
+/// there and its share of the seams' length.
+#[derive(Clone, Copy, Debug)]
+pub struct SeamPoint {
+    pub a: [f32; 2],
+    pub b: [f32; 2],
+    /// |AO difference| of the two sides' lookups.
+    pub ao_jump: f64,
+    /// RMS over the 9 SH coefficients of the difference.
+    pub sh_rms: f64,
+    /// Length weight (bake units).
+    pub weight: f64,
+}
+
+/// The metric's points of `seams` on images `ao` and `sh` of `width` x
+/// `height`: two per texel of each seam's UV length, at least three.
+pub fn points(
     seams: &[Seam],
     width: u32,
     height: u32,
     ao: &[f32],
     sh: &[[f32; SH_COUNT]],
-) -> SeamFigures {
+) -> Vec<SeamPoint> {
     let look = |uv: [f32; 2]| {
         let mut a = 0.0f64;
         let mut s = [0.0f64; SH_COUNT];
@@ -70,24 +85,51 @@ pub fn measure(
         }
         (a, s)
     };
-    // (AO jump, SH RMS jump, length weight) per sample point.
-    let mut points: Vec<(f64, f64, f64)> = Vec::new();
+    let mut points = Vec::new();
     for seam in seams {
         let n = samples(seam, width, height, 2.0).count();
         let weight = seam.length as f64 / n as f64;
         for t in samples(seam, width, height, 2.0) {
-            let (uva, uvb) = seam.at(t);
-            let ((aa, sa), (ab, sb)) = (look(uva), look(uvb));
-            let rms = (sa
+            let (a, b) = seam.at(t);
+            let ((aa, sa), (ab, sb)) = (look(a), look(b));
+            let sh_rms = (sa
                 .iter()
                 .zip(&sb)
                 .map(|(x, y)| (x - y).powi(2))
                 .sum::<f64>()
                 / SH_COUNT as f64)
                 .sqrt();
-            points.push(((aa - ab).abs(), rms, weight));
+            points.push(SeamPoint {
+                a,
+                b,
+                ao_jump: (aa - ab).abs(),
+                sh_rms,
+                weight,
+            });
         }
     }
+    points
+}
+
+/// [`SeamFigures`] of `seams` on images `ao` and `sh` of `width` x `height`.
+pub fn measure(
+    seams: &[Seam],
+    width: u32,
+    height: u32,
+    ao: &[f32],
+    sh: &[[f32; SH_COUNT]],
+) -> SeamFigures {
+    summarise(&points(seams, width, height, ao, sh))
+}
+
+/// [`SeamFigures`] of the metric's points: length-weighted mean, p95 and
+/// share over 8/255.
+pub fn summarise(points: &[SeamPoint]) -> SeamFigures {
+    // (AO jump, SH RMS jump, length weight) per sample point.
+    let mut points: Vec<(f64, f64, f64)> = points
+        .iter()
+        .map(|p| (p.ao_jump, p.sh_rms, p.weight))
+        .collect();
     let total: f64 = points.iter().map(|p| p.2).sum();
     if total <= 0.0 {
         return SeamFigures::default();

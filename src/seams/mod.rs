@@ -40,15 +40,15 @@ pub struct SeamReport {
 
 /// Stitches the page's images in place (AO clamped to [0, 1] after) along
 /// `seams` (bake units; `diagonal` turns lengths into world units).
-/// Texels marked `fixed` keep their values (the pipeline fixes the
-/// [`interior`] ones); the others (border and gutter texels) move.
+/// [`interior`] texels (by `covered`, the texels with a receiver of their
+/// own) keep their values; the others (border and gutter texels) move.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
     diagonal: f64,
     width: u32,
     height: u32,
-    fixed: &[bool],
+    covered: &[bool],
     ao: &mut [f32],
     sh: &mut [[f32; SH_COUNT]],
     visibility: Option<&mut [[f32; VIS_COUNT]]>,
@@ -57,7 +57,7 @@ pub fn stitch_page(
     let channels = 1 + SH_COUNT + if visibility.is_some() { VIS_COUNT } else { 0 };
     let (texels, values, solve) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
-        let fixed = |t: u32| fixed[t as usize];
+        let fixed = |t: u32| interior(covered, width, height, t);
         solve::stitch(seams, width, height, channels, fixed, |t, out| {
             let t = t as usize;
             out[0] = ao[t];
@@ -86,31 +86,21 @@ pub fn stitch_page(
     }
 }
 
-/// A grey map of the page for `--debug-dir`: each texel under a seam
-/// point (on either side) shows the largest AO jump there, white at 0.1 or
-/// more; black elsewhere.
-pub fn jump_map(seams: &[Seam], width: u32, height: u32, ao: &[f32]) -> Vec<u8> {
+/// A grey map of the page for `--debug-dir`: each texel under one of the
+/// metric's `points` (on either side) shows the largest AO jump there,
+/// white at 0.1 or more; black elsewhere.
+pub fn jump_map(points: &[metric::SeamPoint], width: u32, height: u32) -> Vec<u8> {
     let mut img = vec![0u8; (width * height) as usize];
-    let look = |uv: [f32; 2]| {
-        metric::taps(uv, width, height)
-            .iter()
-            .map(|&(t, w)| w * ao[t as usize])
-            .sum::<f32>()
-    };
     let texel = |uv: [f32; 2]| {
         let x = ((uv[0] * width as f32) as i64).clamp(0, width as i64 - 1);
         let y = ((uv[1] * height as f32) as i64).clamp(0, height as i64 - 1);
         (y * width as i64 + x) as usize
     };
-    for seam in seams {
-        for t in metric::samples(seam, width, height, 2.0) {
-            let (a, b) = seam.at(t);
-            let jump = (look(a) - look(b)).abs();
-            let v = ((jump / 0.1).min(1.0) * 255.0).round() as u8;
-            for uv in [a, b] {
-                let i = texel(uv);
-                img[i] = img[i].max(v.max(1));
-            }
+    for p in points {
+        let v = ((p.ao_jump / 0.1).min(1.0) * 255.0).round() as u8;
+        for uv in [p.a, p.b] {
+            let i = texel(uv);
+            img[i] = img[i].max(v.max(1));
         }
     }
     img
