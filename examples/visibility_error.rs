@@ -68,6 +68,16 @@ fn environment(rng: &mut Rng, directional: bool) -> [f32; SH_COUNT] {
     l
 }
 
+/// Mean |error| / p95 |error| / mean error of column `k` of `rows`.
+fn stat<const N: usize>(rows: &[[f32; N]], k: usize) -> String {
+    let mut a: Vec<f32> = rows.iter().map(|e| e[k].abs()).collect();
+    a.sort_by(f32::total_cmp);
+    let mean = a.iter().sum::<f32>() / a.len() as f32;
+    let p95 = a[(a.len() as f32 * 0.95) as usize];
+    let bias = rows.iter().map(|e| e[k]).sum::<f32>() / rows.len() as f32;
+    format!("{mean:.4} / {p95:.4} / {bias:+.4}")
+}
+
 fn decode(png: &[u8]) -> image::RgbaImage {
     image::load_from_memory(png).expect("png").to_rgba8()
 }
@@ -159,8 +169,9 @@ fn main() {
     }
     candidates.truncate(texels);
 
-    // Reference rays: stratified uniform around n, their visibility.
-    let visible: Vec<Vec<bool>> = candidates
+    // Reference rays: stratified uniform directions around n, each with its
+    // visibility.
+    let reference: Vec<Vec<(Vec3, bool)>> = candidates
         .par_iter()
         .map(|&r| {
             let geo = rc.geo_normal[r];
@@ -172,7 +183,7 @@ fn main() {
                     let d = frame
                         .to_world(uniform_hemisphere(sobol_2d(i, seed)))
                         .normalize();
-                    p.tracer.receiver_visible(origin, geo, d, p.max_distance)
+                    (d, p.tracer.receiver_visible(origin, geo, d, p.max_distance))
                 })
                 .collect()
         })
@@ -198,10 +209,9 @@ fn main() {
             .flat_map_iter(|(k, &r)| {
                 let n = rc.normal[r];
                 let frame = Frame::from_normal(n);
-                let seed = receiver_seed(0x5eed, rc.texel[r] as u64, 7);
                 let mut rng = Rng(mix64(k as u64 ^ tilt.to_bits() as u64));
                 let (ao, c, v) = decoded(r);
-                let vis = &visible[k];
+                let rays = &reference[k];
                 envs.iter()
                     .map(|env| {
                         let phi = 2.0 * std::f32::consts::PI * rng.next();
@@ -209,17 +219,14 @@ fn main() {
                         let shading =
                             Quat::from_axis_angle(axis.cross(n).normalize(), tilt.to_radians()) * n;
                         let mut truth = 0.0f64;
-                        for (i, &seen) in vis.iter().enumerate() {
+                        for &(d, seen) in rays {
                             if seen {
-                                let d = frame
-                                    .to_world(uniform_hemisphere(sobol_2d(i as u32, seed)))
-                                    .normalize();
                                 let l: f32 =
                                     sh::basis(d).iter().zip(&env.l).map(|(y, l)| y * l).sum();
                                 truth += (shading.dot(d).max(0.0) * l) as f64;
                             }
                         }
-                        let truth = (truth * 2.0 / vis.len() as f64) as f32;
+                        let truth = (truth * 2.0 / rays.len() as f64) as f32;
                         let open = env.open_diffuse(shading);
                         let e = |est: f32| (est - truth) / open;
                         [
@@ -232,15 +239,12 @@ fn main() {
             })
             .filter(|e| e.iter().all(|x| x.is_finite()))
             .collect();
-        let stat = |k: usize| {
-            let mut a: Vec<f32> = rows.iter().map(|e| e[k].abs()).collect();
-            a.sort_by(f32::total_cmp);
-            let mean = a.iter().sum::<f32>() / a.len() as f32;
-            let p95 = a[(a.len() as f32 * 0.95) as usize];
-            let bias = rows.iter().map(|e| e[k]).sum::<f32>() / rows.len() as f32;
-            format!("{mean:.4} / {p95:.4} / {bias:+.4}")
-        };
-        println!("| {tilt} | {} | {} | {} |", stat(0), stat(1), stat(2));
+        println!(
+            "| {tilt} | {} | {} | {} |",
+            stat(&rows, 0),
+            stat(&rows, 1),
+            stat(&rows, 2)
+        );
     }
 
     // Specular occlusion of a lobe about the tilted normal (a view along
@@ -260,10 +264,9 @@ fn main() {
             .flat_map_iter(|(k, &r)| {
                 let n = rc.normal[r];
                 let frame = Frame::from_normal(n);
-                let seed = receiver_seed(0x5eed, rc.texel[r] as u64, 7);
                 let mut rng = Rng(mix64(k as u64 ^ 0x5bec));
                 let (ao, _, v) = decoded(r);
-                let vis = &visible[k];
+                let rays = &reference[k];
                 envs.iter()
                     .filter_map(|env| {
                         let phi = 2.0 * std::f32::consts::PI * rng.next();
@@ -272,10 +275,7 @@ fn main() {
                             Quat::from_axis_angle(axis.cross(n).normalize(), 30f32.to_radians())
                                 * n;
                         let (mut seen, mut all) = (0.0f64, 0.0f64);
-                        for (i, &visible) in vis.iter().enumerate() {
-                            let d = frame
-                                .to_world(uniform_hemisphere(sobol_2d(i as u32, seed)))
-                                .normalize();
+                        for &(d, visible) in rays {
                             let lobe = reflected.dot(d).max(0.0).powf(s);
                             let l: f32 = sh::basis(d).iter().zip(&env.l).map(|(y, l)| y * l).sum();
                             let w = (lobe * l) as f64;
@@ -296,14 +296,6 @@ fn main() {
             })
             .filter(|e| e.iter().all(|x| x.is_finite()))
             .collect();
-        let stat = |k: usize| {
-            let mut a: Vec<f32> = rows.iter().map(|e| e[k].abs()).collect();
-            a.sort_by(f32::total_cmp);
-            let mean = a.iter().sum::<f32>() / a.len() as f32;
-            let p95 = a[(a.len() as f32 * 0.95) as usize];
-            let bias = rows.iter().map(|e| e[k]).sum::<f32>() / rows.len() as f32;
-            format!("{mean:.4} / {p95:.4} / {bias:+.4}")
-        };
-        println!("| {roughness} | {} | {} |", stat(0), stat(1));
+        println!("| {roughness} | {} | {} |", stat(&rows, 0), stat(&rows, 1));
     }
 }
