@@ -47,6 +47,9 @@ pub enum Error {
     /// Encoding an image failed.
     #[error("encoding failed: {0}")]
     Encode(String),
+    /// A set of shard partials cannot be merged (names the partial).
+    #[error("merge refused: {0}")]
+    Merge(String),
 }
 
 impl Error {

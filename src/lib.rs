@@ -12,6 +12,7 @@
 //! | seams | [`seams`] | dilated images -> the same, stitched at smooth seams |
 //! | encode | [`encode`] | bake + dilation map -> lightmap PNGs (and EXR) |
 //! | write | [`gltf::write`] | scene + atlas + PNGs -> the output GLB |
+//! | shard | [`shard`] | one shard's pages -> a partial; a complete set -> the output GLB |
 //! | report | [`report`] | a scene -> error against time for each method |
 //! | view | [`view`] | a baked GLB -> the relighting viewer on 127.0.0.1 |
 //!
@@ -36,6 +37,7 @@ pub mod sample;
 pub mod seams;
 pub mod settings;
 pub mod sh;
+pub mod shard;
 pub mod stage;
 pub mod trace;
 pub mod view;

@@ -121,7 +121,7 @@ impl From<OcclusionMode> for OcclusionArg {
     name = "aobake",
     version,
     about,
-    after_help = "Also: aobake report IN [options]  measures AO/SH error against run time for each method (see aobake report --help).\n      aobake view [OUT.glb]            relights a bake in the browser viewer on 127.0.0.1 (see aobake view --help)."
+    after_help = "Also: aobake merge OUT.glb            writes OUT.glb from the shards of --shard I/N (see aobake merge --help).\n      aobake report IN [options]  measures AO/SH error against run time for each method (see aobake report --help).\n      aobake view [OUT.glb]            relights a bake in the browser viewer on 127.0.0.1 (see aobake view --help)."
 )]
 struct Cli {
     /// Input .glb or .gltf.
@@ -131,9 +131,12 @@ struct Cli {
     /// Atlas page edge in texels (the densest fit on one page).
     #[arg(long, default_value_t = aobake::settings::DEFAULT_RESOLUTION, conflicts_with = "texel_density")]
     resolution: u32,
-    /// Texels per world unit instead of a fixed page size.
+    /// Texels per world unit instead of a fixed page size: charts are packed into as many pages as they need.
     #[arg(long)]
     texel_density: Option<f64>,
+    /// With --texel-density: the largest page edge in texels (the last page may be smaller).
+    #[arg(long, default_value_t = aobake::settings::DEFAULT_PAGE_SIZE)]
+    page_size: u32,
     /// Rays per texel of the Monte Carlo method.
     #[arg(long, default_value_t = DEFAULTS.rays)]
     rays: u32,
@@ -204,10 +207,27 @@ struct Cli {
     /// SH order of the visibility layer: 3 (16 coefficients) or 2 (9).
     #[arg(long, default_value_t = DEFAULTS.visibility_order)]
     visibility_order: u32,
+    /// Bake only shard I of N's pages into OUTPUT.shard-I-of-N (then: aobake merge OUTPUT). `auto` reads a Slurm array task's index and count, `auto/N` a Kubernetes Indexed Job's JOB_COMPLETION_INDEX (or Slurm's index) with N given.
+    #[arg(long)]
+    shard: Option<String>,
     /// Worker threads [default: all cores].
     #[arg(long)]
     threads: Option<usize>,
     /// No progress bars and no warnings.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// Write OUTPUT from the complete set of shard partials beside it
+/// (OUTPUT.shard-I-of-N, from aobake IN OUTPUT --shard I/N): byte-identical
+/// to baking in one process. Refuses a missing, truncated, duplicated or
+/// mismatched partial and then writes nothing.
+#[derive(Parser, Debug)]
+#[command(name = "aobake merge", version)]
+struct MergeCli {
+    /// The output .glb the shards were given.
+    output: PathBuf,
+    /// No summary.
     #[arg(long, short)]
     quiet: bool,
 }
@@ -292,6 +312,9 @@ fn main() -> ExitCode {
         // argv[0] of the subcommand names it in usage and errors.
         let sub = std::iter::once("aobake report".into()).chain(args[2..].iter().cloned());
         run_report(&ReportCli::parse_from(sub))
+    } else if args.get(1).is_some_and(|a| a == "merge") {
+        let sub = std::iter::once("aobake merge".into()).chain(args[2..].iter().cloned());
+        run_merge(&MergeCli::parse_from(sub))
     } else if args.get(1).is_some_and(|a| a == "view") {
         let sub = std::iter::once("aobake view".into()).chain(args[2..].iter().cloned());
         run_view(&ViewCli::parse_from(sub))
@@ -312,6 +335,23 @@ fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()?;
+    }
+    Ok(())
+}
+
+fn run_merge(cli: &MergeCli) -> anyhow::Result<()> {
+    let merged = aobake::shard::merge(&cli.output)?;
+    if !cli.quiet {
+        for w in &merged.warnings {
+            eprintln!("aobake: warning: {w}");
+        }
+        eprintln!(
+            "aobake: merged {} shards ({} pages of {}) into {}",
+            merged.shards,
+            merged.pages,
+            merged.input.display(),
+            cli.output.display()
+        );
     }
     Ok(())
 }
@@ -348,7 +388,10 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
     set_threads(cli.threads)?;
     let settings = Settings {
         size: match cli.texel_density {
-            Some(t) => AtlasSize::TexelDensity(t),
+            Some(t) => AtlasSize::TexelDensity {
+                density: t,
+                page_size: cli.page_size,
+            },
             None => AtlasSize::Resolution(cli.resolution),
         },
         padding: cli.padding,
@@ -399,14 +442,43 @@ fn run(cli: &Cli) -> anyhow::Result<()> {
             SeamArg::Off => SeamMode::Off,
         },
     };
-    let report = aobake::run(&cli.input, &cli.output, &settings)?;
+    let report = match &cli.shard {
+        Some(text) => {
+            let shard = aobake::shard::Shard::parse(text, &|k| std::env::var(k).ok())?;
+            let (path, report) =
+                aobake::shard::run_shard(&cli.input, &cli.output, &settings, shard)?;
+            if !cli.quiet {
+                let mine: Vec<u32> = report
+                    .pages
+                    .iter()
+                    .filter(|p| p.baked)
+                    .map(|p| p.page)
+                    .collect();
+                eprintln!(
+                    "aobake: shard {}/{}: pages {mine:?} of {} into {}",
+                    shard.index,
+                    shard.count,
+                    report.pages.len(),
+                    path.display()
+                );
+            }
+            report
+        }
+        None => aobake::run(&cli.input, &cli.output, &settings)?,
+    };
     if !cli.quiet {
         for w in &report.warnings {
             eprintln!("aobake: warning: {w}");
         }
         eprintln!(
-            "aobake: baked {} texels ({}x{} atlas) with {} rays in {:.2} s ({:.2} Mrays/s)",
+            "aobake: baked {} texels ({} page{} of {}x{}) with {} rays in {:.2} s ({:.2} Mrays/s)",
             report.texels,
+            report.pages.iter().filter(|p| p.baked).count(),
+            if report.pages.iter().filter(|p| p.baked).count() == 1 {
+                ""
+            } else {
+                "s"
+            },
             report.atlas_width,
             report.atlas_height,
             report.rays_cast,

@@ -14,7 +14,7 @@ use crate::bake::adaptive::AdaptiveOptions;
 use crate::bake::sheared::ShearedOptions;
 use crate::error::{Error, Result};
 use crate::gltf::write::OcclusionMode;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// Memory a bake may use (checked against [`estimated_bytes`] before the
@@ -36,6 +36,10 @@ const BAKE_BYTES_PER_TEXEL: u64 = 45 + 40;
 /// Default atlas page edge in texels.
 pub const DEFAULT_RESOLUTION: u32 = 1024;
 
+/// Default largest page edge of a `--texel-density` bake (a common engine
+/// and GPU texture limit).
+pub const DEFAULT_PAGE_SIZE: u32 = 4096;
+
 /// Default Monte Carlo rays per texel.
 pub const DEFAULT_RAYS: u32 = 256;
 
@@ -43,7 +47,7 @@ pub const DEFAULT_RAYS: u32 = 256;
 pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
 
 /// Baking method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Sparse rays shared between texels by the sheared filter of Egan et
@@ -68,7 +72,7 @@ impl Method {
 }
 
 /// Which primitives get the visibility layer (`--visibility`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum VisibilityMode {
     /// Where the primitive's material can use it
@@ -83,7 +87,7 @@ pub enum VisibilityMode {
 }
 
 /// What happens at smooth seams (`--seams`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SeamMode {
     /// Least-squares stitching of both sides ([`crate::seams`]).
@@ -94,7 +98,7 @@ pub enum SeamMode {
 }
 
 /// Where the lightmap UVs come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum UvSource {
     /// Unwrap every baked placement into a new atlas (new TEXCOORD_n).
     #[default]
@@ -104,7 +108,7 @@ pub enum UvSource {
 }
 
 /// Everything a bake can be told.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Settings {
     pub size: AtlasSize,
     pub padding: u32,
@@ -198,7 +202,7 @@ impl Settings {
                 format!("{d} must be finite and > 0"),
             ));
         }
-        if let (UvSource::Existing(_), AtlasSize::TexelDensity(_)) = (self.uv, self.size) {
+        if let (UvSource::Existing(_), AtlasSize::TexelDensity { .. }) = (self.uv, self.size) {
             return Err(Error::option_conflict(
                 "texel_density",
                 "needs generated UVs; give a resolution with existing UVs",

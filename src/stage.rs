@@ -69,6 +69,20 @@ impl StageTimer {
         self.stages
     }
 
+    /// The stages with the laps of one name added up, in the order each
+    /// name first finished (a bake of several pages laps each page's
+    /// stages once per page).
+    pub fn into_merged_stages(self) -> Vec<StageTime> {
+        let mut out: Vec<StageTime> = Vec::new();
+        for s in self.stages {
+            match out.iter_mut().find(|o| o.stage == s.stage) {
+                Some(o) => o.seconds += s.seconds,
+                None => out.push(s),
+            }
+        }
+        out
+    }
+
     /// Seconds of all stages so far.
     pub fn total(&self) -> f64 {
         total(&self.stages)

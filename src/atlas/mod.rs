@@ -20,4 +20,6 @@ pub mod rasterize;
 pub mod unwrap;
 
 pub use rasterize::{Receivers, rasterize};
-pub use unwrap::{Atlas, AtlasSize, MAX_ATLAS_EDGE, Packing, UnwrapOptions};
+pub use unwrap::{
+    Atlas, AtlasSize, ChartTooLarge, MAX_ATLAS_EDGE, Packing, PageSize, UnwrapOptions,
+};

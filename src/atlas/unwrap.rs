@@ -1,11 +1,13 @@
-//! Unwrap: every baked placement into one lightmap atlas page.
+//! Unwrap: every baked placement into lightmap atlas pages.
 //!
 //! In: the [`ReceiverMesh`]es (bake space) and an [`AtlasSize`]. Out: an
-//! [`Atlas`]: page size and, per receiver mesh, the new vertices (`xref` into
-//! the input vertices, `uv` in `[0,1]` with (0,0) at the image's top-left)
-//! and the same triangles re-indexed. Backed by the pure-Rust `uvunwrap`
-//! crate; the rest of the pipeline sees only these types, so a backend can be
-//! swapped.
+//! [`Atlas`]: its pages' sizes and, per receiver mesh, the new vertices
+//! (`xref` into the input vertices, `uv` in `[0,1]` of their page with (0,0)
+//! at the image's top-left), the same triangles re-indexed and each
+//! triangle's page. A resolution gives one page; a texel density packs as
+//! many pages of at most `page_size` texels as the charts need (a chart
+//! never spans pages). Backed by the pure-Rust `uvunwrap` crate; the rest of
+//! the pipeline sees only these types, so a backend can be swapped.
 
 use crate::error::{Error, Result};
 use crate::geometry::ReceiverMesh;
@@ -14,12 +16,13 @@ use crate::geometry::ReceiverMesh;
 pub const MAX_ATLAS_EDGE: u32 = 16384;
 
 /// How the atlas is sized.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum AtlasSize {
     /// The highest density at which everything fits one page of this edge.
     Resolution(u32),
-    /// Texels per world unit; the page grows to fit.
-    TexelDensity(f64),
+    /// Texels per world unit, on as many pages of at most `page_size`
+    /// texels square as the charts need (the last one cropped).
+    TexelDensity { density: f64, page_size: u32 },
 }
 
 /// Unwrap options.
@@ -33,7 +36,7 @@ pub struct UnwrapOptions {
 
 /// Chart packing: `Fast` (rows; measured 6x faster on Sponza, 13x on 27k
 /// charts, ~8% fewer texels) or `Shape` (nests charts; densest).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Packing {
     #[default]
     Fast,
@@ -49,16 +52,127 @@ pub struct ChartedMesh {
     pub uv: Vec<[f32; 2]>,
     /// Triangle list over the new vertices, same order as the input.
     pub triangles: Vec<u32>,
+    /// Page of each triangle (a chart, and so each triangle, lies on one).
+    pub triangle_page: Vec<u32>,
 }
 
-/// A single-page lightmap atlas.
+impl ChartedMesh {
+    /// The pages this mesh has triangles on, ascending.
+    pub fn pages(&self) -> Vec<u32> {
+        let mut p = self.triangle_page.clone();
+        p.sort_unstable();
+        p.dedup();
+        p
+    }
+
+    /// The triangles on `page` only (vertices kept, so `xref` and `uv` are
+    /// shared with the whole mesh).
+    fn on_page(&self, page: u32) -> ChartedMesh {
+        let triangles: Vec<u32> = self
+            .triangles
+            .chunks_exact(3)
+            .zip(&self.triangle_page)
+            .filter(|&(_, &p)| p == page)
+            .flat_map(|(t, _)| t.iter().copied())
+            .collect();
+        ChartedMesh {
+            xref: self.xref.clone(),
+            uv: self.uv.clone(),
+            triangle_page: vec![0; triangles.len() / 3],
+            triangles,
+        }
+    }
+
+    /// The triangles on `page` with only the vertices they use, in their
+    /// first-use order (for a primitive split across pages).
+    pub fn compact_page(&self, page: u32) -> ChartedMesh {
+        let mut new_index = vec![u32::MAX; self.xref.len()];
+        let mut out = ChartedMesh::default();
+        for (t, _) in self
+            .triangles
+            .chunks_exact(3)
+            .zip(&self.triangle_page)
+            .filter(|&(_, &p)| p == page)
+        {
+            for &v in t {
+                let slot = &mut new_index[v as usize];
+                if *slot == u32::MAX {
+                    *slot = out.xref.len() as u32;
+                    out.xref.push(self.xref[v as usize]);
+                    out.uv.push(self.uv[v as usize]);
+                }
+                out.triangles.push(*slot);
+            }
+            out.triangle_page.push(0);
+        }
+        out
+    }
+}
+
+/// Size of one atlas page in texels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct PageSize {
+    pub width: u32,
+    pub height: u32,
+}
+
+/// A lightmap atlas of one or more pages.
 #[derive(Clone, Debug)]
 pub struct Atlas {
+    /// The largest page's size (the only page's, with one).
     pub width: u32,
     pub height: u32,
     pub charts: u32,
     pub utilization: f32,
+    /// Texels per bake unit.
+    pub texels_per_unit: f64,
+    pub pages: Vec<PageSize>,
     pub meshes: Vec<ChartedMesh>,
+}
+
+impl Atlas {
+    /// Page `page` alone, as a one-page atlas (every mesh keeps its
+    /// vertices and only its triangles on that page).
+    pub fn page(&self, page: u32) -> Atlas {
+        let size = self.pages[page as usize];
+        Atlas {
+            width: size.width,
+            height: size.height,
+            charts: self.charts,
+            utilization: self.utilization,
+            texels_per_unit: self.texels_per_unit,
+            pages: vec![size],
+            meshes: self.meshes.iter().map(|m| m.on_page(page)).collect(),
+        }
+    }
+
+    /// Per page, the texels its triangles cover (their UV area; the
+    /// rasterizer's conservative edges add a little): how shards balance
+    /// pages before any is rasterized.
+    pub fn page_areas(&self) -> Vec<f64> {
+        let mut area = vec![0.0; self.pages.len()];
+        for m in &self.meshes {
+            for (t, &p) in m.triangles.chunks_exact(3).zip(&m.triangle_page) {
+                let [a, b, c] = [0, 1, 2].map(|k| m.uv[t[k] as usize]);
+                let cross = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+                let s = self.pages[p as usize];
+                area[p as usize] += 0.5 * (cross as f64).abs() * s.width as f64 * s.height as f64;
+            }
+        }
+        area
+    }
+}
+
+/// A chart that fits no page at the asked density.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChartTooLarge {
+    /// The receiver mesh it belongs to.
+    pub mesh: usize,
+    /// Its padded size in texels at the asked density.
+    pub width: u32,
+    pub height: u32,
+    /// The largest texel density (world units) at which it fits a page.
+    pub fitting_density: f64,
 }
 
 /// Checks an atlas size: a resolution in 16..=[`MAX_ATLAS_EDGE`], a
@@ -69,31 +183,44 @@ pub fn check_size(size: AtlasSize) -> Result<()> {
             "resolution",
             format!("{r} is outside 16..={MAX_ATLAS_EDGE}"),
         )),
-        AtlasSize::TexelDensity(t) if !(t.is_finite() && t > 0.0) => Err(Error::option(
-            "texel_density",
-            format!("{t} must be finite and > 0"),
-        )),
+        AtlasSize::TexelDensity { density: t, .. } if !(t.is_finite() && t > 0.0) => Err(
+            Error::option("texel_density", format!("{t} must be finite and > 0")),
+        ),
+        AtlasSize::TexelDensity { page_size: e, .. } if !(16..=MAX_ATLAS_EDGE).contains(&e) => Err(
+            Error::option("page_size", format!("{e} is outside 16..={MAX_ATLAS_EDGE}")),
+        ),
         _ => Ok(()),
     }
 }
 
-/// Unwraps all receiver meshes into one page (its size must have passed
-/// [`check_size`]). `diagonal` converts a world
-/// texel density into bake space.
+/// Unwraps all receiver meshes into pages (its size must have passed
+/// [`check_size`]). `diagonal` converts a world texel density into bake
+/// space.
 pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -> Result<Atlas> {
-    unwrap_with_progress(meshes, options, diagonal, &|_, _, _| {})
+    match unwrap_with_progress(meshes, options, diagonal, &|_, _, _| {})? {
+        Ok(atlas) => Ok(atlas),
+        Err(c) => Err(Error::Limit(format!(
+            "a chart of receiver mesh {} is {}x{} texels, larger than a page; a texel density of {:.4} would fit",
+            c.mesh, c.width, c.height, c.fitting_density
+        ))),
+    }
 }
 
-/// [`unwrap`], reporting (stage name, done, total if known) as it goes.
+/// [`unwrap`], reporting (stage name, done, total if known) as it goes,
+/// and returning a chart that fits no page as its own outcome (the
+/// pipeline names its glTF object).
 pub fn unwrap_with_progress(
     meshes: &[ReceiverMesh],
     options: &UnwrapOptions,
     diagonal: f64,
     progress: &(dyn Fn(&'static str, usize, Option<usize>) + Sync),
-) -> Result<Atlas> {
+) -> Result<std::result::Result<Atlas, ChartTooLarge>> {
     let density = match options.size {
         AtlasSize::Resolution(r) => uvunwrap::Density::Auto { page_size: r },
-        AtlasSize::TexelDensity(t) => {
+        AtlasSize::TexelDensity {
+            density: t,
+            page_size,
+        } => {
             let tpu = t * diagonal;
             if !(tpu.is_finite() && tpu > 0.0) {
                 return Err(Error::option(
@@ -103,7 +230,7 @@ pub fn unwrap_with_progress(
             }
             uvunwrap::Density::Fixed {
                 texels_per_unit: tpu as f32,
-                page_size: None,
+                page_size: Some(page_size),
             }
         }
     };
@@ -120,18 +247,43 @@ pub fn unwrap_with_progress(
         },
         ..Default::default()
     };
-    let atlas = uvunwrap::generate_with_progress(&inputs, &opts, |p| {
-        let stage = match p.stage {
-            uvunwrap::Stage::Segmenting => "segmenting",
-            uvunwrap::Stage::Parameterizing => "flattening",
-            uvunwrap::Stage::Packing => "packing",
-            _ => "unwrapping",
-        };
-        progress(stage, p.done, p.total);
-        true
-    })
-    .map_err(|e| Error::Unwrap(e.to_string()))?;
-    if atlas.page_count > 1 {
+    let generate = |opts: &uvunwrap::Options| {
+        uvunwrap::generate_with_progress(&inputs, opts, |p| {
+            let stage = match p.stage {
+                uvunwrap::Stage::Segmenting => "segmenting",
+                uvunwrap::Stage::Parameterizing => "flattening",
+                uvunwrap::Stage::Packing => "packing",
+                _ => "unwrapping",
+            };
+            progress(stage, p.done, p.total);
+            true
+        })
+    };
+    let atlas = match (generate(&opts), options.size) {
+        (Ok(a), _) => a,
+        (
+            Err(uvunwrap::Error::ChartTooLarge { .. }),
+            AtlasSize::TexelDensity { density, page_size },
+        ) => {
+            // Which mesh's chart: the same density on one unbounded page.
+            let unbounded = uvunwrap::Options {
+                density: uvunwrap::Density::Fixed {
+                    texels_per_unit: (density * diagonal) as f32,
+                    page_size: None,
+                },
+                ..opts
+            };
+            let whole = generate(&unbounded).map_err(|e| Error::Unwrap(e.to_string()))?;
+            return Ok(Err(largest_chart(
+                &whole,
+                options.padding,
+                page_size,
+                density,
+            )));
+        }
+        (Err(e), _) => return Err(Error::Unwrap(e.to_string())),
+    };
+    if matches!(options.size, AtlasSize::Resolution(_)) && atlas.page_count > 1 {
         return Err(Error::Limit(format!(
             "the {} charts cannot share one atlas page with padding {} (they need {} pages); raise the resolution or lower the padding",
             atlas.chart_count, options.padding, atlas.page_count
@@ -143,21 +295,144 @@ pub fn unwrap_with_progress(
             atlas.width, atlas.height
         )));
     }
-    Ok(Atlas {
-        width: atlas.width.max(1),
-        height: atlas.height.max(1),
-        charts: atlas.chart_count,
-        utilization: atlas.utilization,
-        meshes: atlas
-            .meshes
-            .into_iter()
-            .map(|m| ChartedMesh {
+    let (w, h) = (atlas.width.max(1), atlas.height.max(1));
+    let page_count = atlas.page_count.max(1);
+    let mut meshes: Vec<ChartedMesh> = atlas
+        .meshes
+        .into_iter()
+        .map(|m| {
+            let page_of = |v: u32| m.vertices[v as usize].page;
+            let triangle_page = m
+                .indices
+                .chunks_exact(3)
+                .map(|t| t.iter().find_map(|&v| page_of(v)).unwrap_or(0))
+                .collect();
+            ChartedMesh {
                 xref: m.vertices.iter().map(|v| v.xref).collect(),
                 uv: m.vertices.iter().map(|v| v.uv).collect(),
                 triangles: m.indices,
-            })
-            .collect(),
-    })
+                triangle_page,
+            }
+        })
+        .collect();
+    let pages = match options.size {
+        AtlasSize::TexelDensity { .. } => {
+            crop_last_page(&mut meshes, w, h, page_count, options.padding)
+        }
+        AtlasSize::Resolution(_) => vec![PageSize {
+            width: w,
+            height: h,
+        }],
+    };
+    Ok(Ok(Atlas {
+        width: pages.iter().map(|p| p.width).max().unwrap_or(w),
+        height: pages.iter().map(|p| p.height).max().unwrap_or(h),
+        charts: atlas.chart_count,
+        utilization: atlas.utilization,
+        texels_per_unit: atlas.texels_per_unit as f64,
+        pages,
+        meshes,
+    }))
+}
+
+/// Crops the last of `count` `w` x `h` pages to the texels its charts use
+/// (and their padding), rescaling its vertices' UVs to the smaller page.
+/// Returns every page's size.
+fn crop_last_page(
+    meshes: &mut [ChartedMesh],
+    w: u32,
+    h: u32,
+    count: u32,
+    padding: u32,
+) -> Vec<PageSize> {
+    let last = count - 1;
+    let on_last = |m: &ChartedMesh| -> Vec<bool> {
+        let mut used = vec![false; m.uv.len()];
+        for (t, &p) in m.triangles.chunks_exact(3).zip(&m.triangle_page) {
+            if p == last {
+                for &v in t {
+                    used[v as usize] = true;
+                }
+            }
+        }
+        used
+    };
+    let (mut max_u, mut max_v) = (0.0f32, 0.0f32);
+    for m in meshes.iter() {
+        for (uv, used) in m.uv.iter().zip(on_last(m)) {
+            if used {
+                max_u = max_u.max(uv[0]);
+                max_v = max_v.max(uv[1]);
+            }
+        }
+    }
+    let crop = |max: f32, edge: u32| ((max * edge as f32).ceil() as u32 + padding).clamp(1, edge);
+    let (cw, ch) = (crop(max_u, w), crop(max_v, h));
+    for m in meshes.iter_mut() {
+        let used = on_last(m);
+        for (uv, used) in m.uv.iter_mut().zip(used) {
+            if used {
+                uv[0] = uv[0] * w as f32 / cw as f32;
+                uv[1] = uv[1] * h as f32 / ch as f32;
+            }
+        }
+    }
+    let mut pages = vec![
+        PageSize {
+            width: w,
+            height: h
+        };
+        count as usize
+    ];
+    pages[last as usize] = PageSize {
+        width: cw,
+        height: ch,
+    };
+    pages
+}
+
+/// The largest chart of an unbounded atlas: its mesh, padded size and the
+/// world density at which it would fit a `page_size` page.
+fn largest_chart(
+    atlas: &uvunwrap::Atlas,
+    padding: u32,
+    page_size: u32,
+    density: f64,
+) -> ChartTooLarge {
+    let (w, h) = (atlas.width as f32, atlas.height as f32);
+    let mut best = ChartTooLarge {
+        mesh: 0,
+        width: 0,
+        height: 0,
+        fitting_density: density,
+    };
+    for (mi, m) in atlas.meshes.iter().enumerate() {
+        let mut boxes: std::collections::HashMap<u32, [f32; 4]> = Default::default();
+        for v in &m.vertices {
+            if let Some(c) = v.chart {
+                let b = boxes
+                    .entry(c)
+                    .or_insert([f32::MAX, f32::MAX, f32::MIN, f32::MIN]);
+                b[0] = b[0].min(v.uv[0] * w);
+                b[1] = b[1].min(v.uv[1] * h);
+                b[2] = b[2].max(v.uv[0] * w);
+                b[3] = b[3].max(v.uv[1] * h);
+            }
+        }
+        for b in boxes.values() {
+            let (cw, ch) = ((b[2] - b[0]).ceil() as u32, (b[3] - b[1]).ceil() as u32);
+            if cw.max(ch) > best.width.max(best.height) {
+                let inner = page_size.saturating_sub(2 * padding + 2).max(1) as f64;
+                best = ChartTooLarge {
+                    mesh: mi,
+                    width: cw + 2 * padding,
+                    height: ch + 2 * padding,
+                    fitting_density: density * inner / cw.max(ch).max(1) as f64,
+                };
+            }
+        }
+    }
+    best
 }
 
 /// Builds the atlas from an existing UV set of every receiver mesh instead
@@ -171,6 +446,7 @@ pub fn existing(meshes: &[ReceiverMesh], uvs: Vec<Vec<[f32; 2]>>, resolution: u3
         .map(|(m, uv)| ChartedMesh {
             xref: (0..m.positions.len() as u32).collect(),
             uv,
+            triangle_page: vec![0; m.triangles.len() / 3],
             triangles: m.triangles.clone(),
         })
         .collect();
@@ -179,6 +455,11 @@ pub fn existing(meshes: &[ReceiverMesh], uvs: Vec<Vec<[f32; 2]>>, resolution: u3
         height: resolution,
         charts: 0,
         utilization: 0.0,
+        texels_per_unit: 0.0,
+        pages: vec![PageSize {
+            width: resolution,
+            height: resolution,
+        }],
         meshes: out,
     }
 }

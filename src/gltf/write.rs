@@ -19,6 +19,7 @@ use super::accessor::{self, Component, RawAccessor, array};
 use super::container::{Document, glb_bytes, percent_decode};
 use super::scene::Scene;
 use crate::atlas::Atlas;
+use crate::atlas::unwrap::ChartedMesh;
 use crate::encode::Encoded;
 use crate::error::{Error, Result};
 use crate::geometry::BakeGeometry;
@@ -30,7 +31,7 @@ use std::path::{Path, PathBuf};
 pub const EXTENSION: &str = "AOBAKE_lightmap";
 
 /// What to do with a material that already has an occlusionTexture.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum OcclusionMode {
     /// Keep the existing occlusionTexture (the bake is still in the extension).
     #[default]
@@ -220,12 +221,14 @@ pub struct OutputOptions {
     pub output_dir: Option<PathBuf>,
 }
 
-/// A baked primitive's new JSON, before it is placed into a mesh.
+/// A baked primitive's new JSON, before it is placed into a mesh: one
+/// primitive per atlas page it has charts on (the first takes the
+/// original's place, the others are appended to the mesh).
 struct PrimitiveEdit {
     node: usize,
     mesh: usize,
     primitive: usize,
-    json: Value,
+    json: Vec<Value>,
 }
 
 /// Builds the output GLB.
@@ -233,7 +236,7 @@ pub fn build_glb(
     scene: &Scene,
     geometry: &BakeGeometry,
     atlas: &Atlas,
-    encoded: &Encoded,
+    pages: &[&Encoded],
     options: &OutputOptions,
     warnings: &mut Vec<String>,
 ) -> Result<Vec<u8>> {
@@ -250,120 +253,145 @@ pub fn build_glb(
         Bin { data: Vec::new() }
     };
 
-    // Images, sampler and textures of the bake.
+    // Images, sampler and textures of the bake, page by page.
     let sampler = push(
         &mut json,
         "samplers",
         json!({"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}),
     );
-    let texture = |json: &mut Value, bin: &mut Bin, png: &[u8], name: &str| -> usize {
-        let view = bin.push_view(json, png, None, None);
-        let image = push(
-            json,
-            "images",
-            json!({"name": name, "mimeType": "image/png", "bufferView": view}),
-        );
-        push(
-            json,
-            "textures",
-            json!({"name": name, "sampler": sampler, "source": image}),
-        )
-    };
-    let occlusion_tex = texture(
-        &mut json,
-        &mut bin,
-        &encoded.occlusion_png,
-        "aobake_occlusion",
-    );
-    let sh_tex: Vec<usize> = (0..3)
-        .map(|i| {
-            texture(
-                &mut json,
-                &mut bin,
-                &encoded.sh_png[i],
-                &format!("aobake_sh{i}"),
+    let multi_page = pages.len() > 1;
+    let layer_wanted = options.visibility_meshes.iter().any(|&v| v);
+    let mut page_ext = Vec::with_capacity(pages.len());
+    let mut visibility_order = None;
+    for (p, encoded) in pages.iter().enumerate() {
+        // Page 0's images keep the one-page names.
+        let name = |base: &str| {
+            if p == 0 {
+                format!("aobake_{base}")
+            } else {
+                format!("aobake_page{p}_{base}")
+            }
+        };
+        let mut texture = |json: &mut Value, png: &[u8], name: &str| -> usize {
+            let view = bin.push_view(json, png, None, None);
+            let image = push(
+                json,
+                "images",
+                json!({"name": name, "mimeType": "image/png", "bufferView": view}),
+            );
+            push(
+                json,
+                "textures",
+                json!({"name": name, "sampler": sampler, "source": image}),
             )
-        })
-        .collect();
-    let prim_ext = json!({
-        "texCoord": 0,
-        "occlusion": {"index": occlusion_tex},
-        "sh": sh_tex.iter().map(|&t| json!({"index": t})).collect::<Vec<_>>(),
-        "shScale": encoded.sh_scale,
-        "shOffset": encoded.sh_offset,
-    });
-    // The visibility layer's textures, when any primitive gets it.
-    let visibility = encoded
-        .visibility
-        .as_ref()
-        .filter(|_| options.visibility_meshes.iter().any(|&v| v))
-        .map(|layer| {
+        };
+        let occlusion_tex = texture(&mut json, &encoded.occlusion_png, &name("occlusion"));
+        let sh_tex: Vec<usize> = (0..3)
+            .map(|i| texture(&mut json, &encoded.sh_png[i], &name(&format!("sh{i}"))))
+            .collect();
+        let mut ext = json!({
+            "texCoord": 0,
+            "occlusion": {"index": occlusion_tex},
+            "sh": sh_tex.iter().map(|&t| json!({"index": t})).collect::<Vec<_>>(),
+            "shScale": encoded.sh_scale,
+            "shOffset": encoded.sh_offset,
+        });
+        if multi_page {
+            ext["page"] = json!(p);
+        }
+        // The visibility layer's textures, when any primitive gets it.
+        let layer = encoded.visibility.as_ref().filter(|_| layer_wanted).map(|layer| {
             let tex: Vec<Value> = layer
                 .png
                 .iter()
                 .enumerate()
-                .map(|(i, png)| {
-                    json!({"index": texture(&mut json, &mut bin, png, &format!("aobake_visibility{i}"))})
-                })
+                .map(|(i, png)| json!({"index": texture(&mut json, png, &name(&format!("visibility{i}")))}))
                 .collect();
-            (tex, layer)
+            visibility_order = Some(if layer.scale.len() == 16 { 3 } else { 2 });
+            json!({"visibility": tex, "visibilityScale": layer.scale, "visibilityOffset": layer.offset})
         });
+        page_ext.push((ext, layer));
+    }
 
-    // New primitives.
+    // New primitives: one per page a baked primitive has charts on.
     let mut edits = Vec::new();
     for (k, rm) in geometry.receivers.iter().enumerate() {
         let inst = &scene.instances[rm.instance];
         let g = &scene.geometries[inst.geometry];
         let charted = &atlas.meshes[k];
         let what = g.label();
-        let mut prim = doc.json["meshes"][g.mesh]["primitives"][g.primitive].clone();
-        let tex_coord = match options.existing_uv {
-            Some(set) => set,
-            None => add_lightmap_uvs(
-                &mut json,
-                &mut bin,
-                doc,
-                &mut prim,
-                charted,
-                g.positions.len(),
-                &what,
-                warnings,
-            )?,
+        let original = &doc.json["meshes"][g.mesh]["primitives"][g.primitive];
+        let mesh_pages = charted.pages();
+        let pieces: Vec<(u32, std::borrow::Cow<ChartedMesh>)> = match mesh_pages.as_slice() {
+            [] => vec![(0, std::borrow::Cow::Borrowed(charted))],
+            [p] => vec![(*p, std::borrow::Cow::Borrowed(charted))],
+            many => many
+                .iter()
+                .map(|&p| (p, std::borrow::Cow::Owned(charted.compact_page(p))))
+                .collect(),
         };
-        let mut ext = prim_ext.clone();
-        ext["texCoord"] = json!(tex_coord);
-        if let Some((tex, layer)) = &visibility
-            && options.visibility_meshes.get(k).copied().unwrap_or(false)
-        {
-            ext["visibility"] = json!(tex);
-            ext["visibilityScale"] = json!(layer.scale);
-            ext["visibilityOffset"] = json!(layer.offset);
+        let mut prims = Vec::with_capacity(pieces.len());
+        for (page, piece) in pieces {
+            let mut prim = original.clone();
+            let tex_coord = match options.existing_uv {
+                Some(set) => set,
+                None => add_lightmap_uvs(
+                    &mut json,
+                    &mut bin,
+                    doc,
+                    &mut prim,
+                    &piece,
+                    g.positions.len(),
+                    &what,
+                    warnings,
+                )?,
+            };
+            let (page_ext, layer) = &page_ext[page as usize];
+            let mut ext = page_ext.clone();
+            ext["texCoord"] = json!(tex_coord);
+            if let Some(layer) = layer
+                && options.visibility_meshes.get(k).copied().unwrap_or(false)
+            {
+                for (key, v) in layer.as_object().expect("layer fields") {
+                    ext[key] = v.clone();
+                }
+            }
+            set_extension(&mut prim, ext);
+            prims.push(prim);
         }
-        set_extension(&mut prim, ext);
         edits.push(PrimitiveEdit {
             node: inst.node,
             mesh: g.mesh,
             primitive: g.primitive,
-            json: prim,
+            json: prims,
         });
     }
 
     place_primitives(&mut json, edits.as_slice())?;
-    assign_materials(&mut json, occlusion_tex, options.occlusion);
+    assign_materials(&mut json, options.occlusion);
 
     // Root extension.
     let obj = json.as_object_mut().expect("root");
     let exts = obj.entry("extensions").or_insert_with(|| json!({}));
     exts[EXTENSION] = json!({
-        "version": 1,
+        "version": if multi_page { 2 } else { 1 },
         "method": record.method,
         "rays": record.rays,
         "seed": record.seed,
         "maxDistance": record.max_distance,
         "resolution": [record.width, record.height],
     });
-    if let Some((_, layer)) = &visibility {
-        exts[EXTENSION]["visibilityOrder"] = json!(if layer.scale.len() == 16 { 3 } else { 2 });
+    if multi_page {
+        exts[EXTENSION]["pages"] = Value::Array(
+            atlas
+                .pages
+                .iter()
+                .map(|p| json!([p.width, p.height]))
+                .collect(),
+        );
+    }
+    if let Some(order) = visibility_order {
+        exts[EXTENSION]["visibilityOrder"] = json!(order);
     }
     let used = obj.entry("extensionsUsed").or_insert_with(|| json!([]));
     if let Some(u) = used.as_array_mut()
@@ -390,7 +418,7 @@ fn add_lightmap_uvs(
     bin: &mut Bin,
     doc: &Document,
     prim: &mut Value,
-    charted: &crate::atlas::unwrap::ChartedMesh,
+    charted: &ChartedMesh,
     vertex_count: usize,
     what: &str,
     warnings: &mut Vec<String>,
@@ -504,7 +532,10 @@ fn place_primitives(json: &mut Value, edits: &[PrimitiveEdit]) -> Result<()> {
             idx
         };
         for e in prims {
-            json["meshes"][target]["primitives"][e.primitive] = e.json.clone();
+            json["meshes"][target]["primitives"][e.primitive] = e.json[0].clone();
+            if let Some(list) = json["meshes"][target]["primitives"].as_array_mut() {
+                list.extend(e.json[1..].iter().cloned());
+            }
         }
     }
     Ok(())
@@ -513,19 +544,22 @@ fn place_primitives(json: &mut Value, edits: &[PrimitiveEdit]) -> Result<()> {
 /// Gives every baked primitive a material showing the AO through the core
 /// occlusionTexture, duplicating materials shared across UV sets or with
 /// unbaked primitives.
-fn assign_materials(json: &mut Value, occlusion_tex: usize, mode: OcclusionMode) {
-    // (mesh, primitive, material, tex_coord or None for unbaked)
-    let mut uses: Vec<(usize, usize, Option<usize>, Option<usize>)> = Vec::new();
+fn assign_materials(json: &mut Value, mode: OcclusionMode) {
+    // (mesh, primitive, material, (tex_coord, AO texture) or None for unbaked)
+    type Use = (usize, usize, Option<usize>, Option<(usize, usize)>);
+    let mut uses: Vec<Use> = Vec::new();
     for (mi, m) in array(json, "meshes").iter().enumerate() {
         for (pi, p) in array(m, "primitives").iter().enumerate() {
             let mat = p
                 .get("material")
                 .and_then(Value::as_u64)
                 .map(|v| v as usize);
-            let n = p
-                .pointer(&format!("/extensions/{EXTENSION}/texCoord"))
-                .and_then(Value::as_u64)
-                .map(|v| v as usize);
+            let field = |f: &str| {
+                p.pointer(&format!("/extensions/{EXTENSION}/{f}"))
+                    .and_then(Value::as_u64)
+                    .map(|v| v as usize)
+            };
+            let n = field("texCoord").zip(field("occlusion/index"));
             uses.push((mi, pi, mat, n));
         }
     }
@@ -534,7 +568,7 @@ fn assign_materials(json: &mut Value, occlusion_tex: usize, mode: OcclusionMode)
         .filter(|u| u.3.is_none())
         .filter_map(|u| u.2)
         .collect();
-    let mut chosen: HashMap<(Option<usize>, usize), usize> = HashMap::new();
+    let mut chosen: HashMap<(Option<usize>, (usize, usize)), usize> = HashMap::new();
     let mut edited_in_place: BTreeSet<usize> = BTreeSet::new();
     for &(mi, pi, mat, n) in &uses {
         let Some(n) = n else { continue };
@@ -556,6 +590,7 @@ fn assign_materials(json: &mut Value, occlusion_tex: usize, mode: OcclusionMode)
                 json!({"name": "aobake_default", "pbrMetallicRoughness": {}}),
             ),
         });
+        let (n, occlusion_tex) = n;
         json["materials"][target]["occlusionTexture"] =
             json!({"index": occlusion_tex, "texCoord": n});
         if mat != Some(target) {

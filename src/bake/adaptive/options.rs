@@ -7,7 +7,7 @@ use super::sums::RaySums;
 use crate::error::{Error, Result};
 
 /// Options of the adaptive method.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AdaptiveOptions {
     /// Closest-hit rays per receiver in the pre-pass (a power of two).
     pub pre_rays: u32,

@@ -16,7 +16,7 @@ pub(super) const SPARSE_STREAM: u64 = 1;
 /// Options of the sheared filter (paper defaults where the paper gives
 /// one). The max distance and seed every method shares are in
 /// [`BakeParams`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ShearedOptions {
     /// Sparse rays per receiver (paper: 4-32). 4 measured best at the
     /// default radius: at 1024 texels against 8 it took 0.91x the time on
