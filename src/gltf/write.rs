@@ -568,14 +568,18 @@ fn assign_materials(json: &mut Value, mode: OcclusionMode) {
         .filter(|u| u.3.is_none())
         .filter_map(|u| u.2)
         .collect();
+    // As in the input: a material gets one occlusionTexture per page.
+    let had_occlusion: BTreeSet<usize> = array(json, "materials")
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.get("occlusionTexture").is_some())
+        .map(|(i, _)| i)
+        .collect();
     let mut chosen: HashMap<(Option<usize>, (usize, usize)), usize> = HashMap::new();
     let mut edited_in_place: BTreeSet<usize> = BTreeSet::new();
     for &(mi, pi, mat, n) in &uses {
         let Some(n) = n else { continue };
-        if let Some(m) = mat
-            && json["materials"][m].get("occlusionTexture").is_some()
-            && mode == OcclusionMode::Keep
-        {
+        if mat.is_some_and(|m| had_occlusion.contains(&m)) && mode == OcclusionMode::Keep {
             continue;
         }
         let target = *chosen.entry((mat, n)).or_insert_with(|| match mat {

@@ -78,9 +78,11 @@ function decoded(path) {
   const glb = readGlb(readFileSync(path));
   const exts = lightmapOf(glb);
   assert.ok(exts.length > 0, `${path} has baked primitives`);
-  // One atlas page: every primitive names the same textures and ranges.
-  for (const e of exts) assert.deepEqual(e.shScale, exts[0].shScale);
-  const ext = exts[0];
+  // One atlas page (version 1): every primitive names the same textures
+  // and ranges; with several (version 2) each page has its own.
+  const root = glb.json.extensions.AOBAKE_lightmap;
+  if (root.version === 1) for (const e of exts) assert.deepEqual(e.shScale, exts[0].shScale);
+  const ext = { ...exts[0], shScale: exts[0].shScale.map((_, i) => Math.max(...exts.map((e) => e.shScale[i]))) };
   const images = [ext.occlusion, ...ext.sh].map((r) => textureImage(glb, r.index));
   return { glb, ext, images };
 }
@@ -101,6 +103,9 @@ before(async () => {
     ['--resolution', '256', '--rays', '64']);
   files.sponza = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza.glb'),
     ['--resolution', '512', '--rays', '16']);
+  // Several atlas pages: each primitive reads its own page's textures.
+  files.sponzaPages = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza_pages.glb'),
+    ['--texel-density', '5', '--page-size', '256', '--rays', '16', '--method', 'mc']);
   files.plane = bake(tiltedPlane(join(dir, 'plane_in.glb')), join(dir, 'plane.glb'),
     ['--resolution', '64', '--rays', '4096']);
   // Every material of the helmet has a normal map: `auto` bakes the layer.
@@ -116,12 +121,20 @@ after(async () => {
 });
 
 describe('uniform white environment: the relit irradiance is the baked AO', () => {
-  for (const name of ['cornell', 'sponza']) {
+  for (const name of ['cornell', 'sponza', 'sponzaPages']) {
     test(name, async () => {
       const page = await open(browser, server.url);
       const status = await pick(page, files[name]);
       assert.equal(status.problems.length, 0, status.message);
       assert.ok(status.baked > 0);
+      if (name === 'sponzaPages') {
+        const { glb } = decoded(files[name]);
+        const root = glb.json.extensions.AOBAKE_lightmap;
+        const pages = new Set(lightmapOf(glb).map((e) => e.occlusion.index));
+        console.log(`# sponzaPages: version ${root.version}, ${root.pages.length} pages, ${pages.size} AO textures read`);
+        assert.equal(root.version, 2);
+        assert.ok(root.pages.length >= 3 && pages.size === root.pages.length, JSON.stringify(root.pages));
+      }
       // L0 of a uniform radiance 1 is 2 sqrt(pi); nothing else.
       const L = await page.evaluate(() => window.aobakeViewer.setEnvironment('white'));
       assert.ok(Math.abs(L[0][0] - 2 * Math.sqrt(Math.PI)) < 1e-3, `L0 = ${L[0][0]}`);
