@@ -1,0 +1,308 @@
+//! Multi-page atlases and sharded bakes, on the bundled Cornell box at a
+//! texel density that needs several small pages.
+//!
+//! Independent expectations: every page is at most the page size; every
+//! triangle of the input is in exactly one output primitive and reads the
+//! AO texture of its page; the merged file equals the one-process bake
+//! byte for byte; a merge refuses every broken set and writes nothing.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+mod common;
+
+const PAGE: &str = "128";
+const DENSITY: &str = "0.2";
+
+fn cornell() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cornell_box.glb")
+}
+
+fn aobake(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_aobake"))
+        .args(args)
+        .output()
+        .expect("aobake runs")
+}
+
+fn bake_args<'a>(input: &'a str, output: &'a str) -> Vec<&'a str> {
+    vec![
+        input,
+        output,
+        "--texel-density",
+        DENSITY,
+        "--page-size",
+        PAGE,
+        "--quality",
+        "16",
+        "-q",
+    ]
+}
+
+fn ok(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "aobake failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn a_level_on_several_pages_splits_primitives_per_page() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.glb");
+    let report = dir.path().join("report.json");
+    let input = cornell();
+    let mut args = bake_args(input.to_str().unwrap(), out.to_str().unwrap());
+    args.extend(["--report", report.to_str().unwrap()]);
+    ok(&aobake(&args));
+    let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let pages = r["pages"].as_array().unwrap();
+    assert!(pages.len() >= 3, "{} pages", pages.len());
+    assert!((r["texel_density"].as_f64().unwrap() - 0.2).abs() < 1e-6);
+    for p in pages {
+        assert!(p["width"].as_u64().unwrap() <= 128 && p["height"].as_u64().unwrap() <= 128);
+        assert!(p["baked"].as_bool().unwrap() && p["texels"].as_u64().unwrap() > 0);
+    }
+
+    let (json, _) = common::split(&std::fs::read(&out).unwrap());
+    let root = &json["extensions"]["AOBAKE_lightmap"];
+    assert_eq!(root["version"], 2);
+    assert_eq!(root["pages"].as_array().unwrap().len(), pages.len());
+    let (input_json, _) = common::split(&std::fs::read(cornell()).unwrap());
+    let count = |j: &Value, f: &dyn Fn(&Value) -> bool| -> u64 {
+        let mut n = 0;
+        for m in j["meshes"].as_array().unwrap() {
+            for p in m["primitives"].as_array().unwrap() {
+                if f(p) {
+                    n += j["accessors"][p["indices"].as_u64().unwrap() as usize]["count"]
+                        .as_u64()
+                        .unwrap();
+                }
+            }
+        }
+        n
+    };
+    // Every input triangle lands in exactly one output primitive.
+    assert_eq!(count(&json, &|_| true), count(&input_json, &|_| true));
+    let mut seen_pages = std::collections::BTreeSet::new();
+    let mut split = 0;
+    for m in json["meshes"].as_array().unwrap() {
+        let prims = m["primitives"].as_array().unwrap();
+        split += (prims.len() > 1) as usize;
+        for p in prims {
+            let e = &p["extensions"]["AOBAKE_lightmap"];
+            let page = e["page"].as_u64().unwrap();
+            seen_pages.insert(page);
+            // Its material shows its own page's AO.
+            let mat = &json["materials"][p["material"].as_u64().unwrap() as usize];
+            assert_eq!(mat["occlusionTexture"]["index"], e["occlusion"]["index"]);
+            let image = &json["images"][json["textures"]
+                [e["occlusion"]["index"].as_u64().unwrap() as usize]["source"]
+                .as_u64()
+                .unwrap() as usize];
+            let name = image["name"].as_str().unwrap();
+            let expected = if page == 0 {
+                "aobake_occlusion".to_string()
+            } else {
+                format!("aobake_page{page}_occlusion")
+            };
+            assert_eq!(name, expected);
+        }
+    }
+    assert_eq!(seen_pages.len(), pages.len(), "every page is read");
+    assert!(split > 0, "some mesh is split across pages");
+}
+
+#[test]
+fn a_resolution_bake_keeps_one_page_and_version_1() {
+    let sc = common::scene(&std::fs::read(cornell()).unwrap());
+    let baked = aobake::bake_scene(&sc, &common::settings(64, 16, None)).unwrap();
+    let (json, _) = common::split(&baked.glb);
+    assert_eq!(json["extensions"]["AOBAKE_lightmap"]["version"], 1);
+    assert!(json["extensions"]["AOBAKE_lightmap"].get("pages").is_none());
+    assert_eq!(baked.report.pages.len(), 1);
+}
+
+#[test]
+fn a_chart_larger_than_a_page_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.glb");
+    let input = cornell();
+    let o = aobake(&[
+        input.to_str().unwrap(),
+        out.to_str().unwrap(),
+        "--texel-density",
+        "20",
+        "--page-size",
+        "128",
+        "-q",
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("meshes[") && err.contains("--texel-density"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(!out.exists());
+}
+
+fn partials(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn shards_as_concurrent_processes_merge_byte_identically_and_faults_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = cornell();
+    let input = input.to_str().unwrap();
+    let single = dir.path().join("single.glb");
+    ok(&aobake(&bake_args(input, single.to_str().unwrap())));
+
+    let shards = dir.path().join("shards");
+    std::fs::create_dir(&shards).unwrap();
+    let out = shards.join("out.glb");
+    let out_s = out.to_str().unwrap();
+    // Three shards at once, as a scheduler would run them.
+    let children: Vec<_> = (0..3)
+        .map(|i| {
+            let shard = format!("{i}/3");
+            let mut args = bake_args(input, out_s);
+            args.extend(["--shard", &shard, "--threads", "1"]);
+            Command::new(env!("CARGO_BIN_EXE_aobake"))
+                .args(&args)
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for mut c in children {
+        assert!(c.wait().unwrap().success());
+    }
+    assert_eq!(
+        partials(&shards),
+        [
+            "out.glb.shard-0-of-3",
+            "out.glb.shard-1-of-3",
+            "out.glb.shard-2-of-3"
+        ]
+    );
+    ok(&aobake(&["merge", out_s, "-q"]));
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(&single).unwrap()
+    );
+    std::fs::remove_file(&out).unwrap();
+
+    let refused = |what: &str, expect: &str| {
+        let o = aobake(&["merge", out_s, "-q"]);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(!o.status.success(), "{what}: merged");
+        assert!(err.contains(expect), "{what}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{what}: {err}");
+        assert!(!out.exists(), "{what}: wrote the output");
+    };
+    let p1 = shards.join("out.glb.shard-1-of-3");
+    let kept = std::fs::read(&p1).unwrap();
+
+    // Missing.
+    std::fs::remove_file(&p1).unwrap();
+    refused("missing", "out.glb.shard-1-of-3 is missing");
+    // Truncated.
+    std::fs::write(&p1, &kept[..kept.len() / 2]).unwrap();
+    refused("truncated", "truncated");
+    // Changed in place.
+    let mut flipped = kept.clone();
+    let mid = flipped.len() / 2;
+    flipped[mid] ^= 1;
+    std::fs::write(&p1, &flipped).unwrap();
+    refused("corrupt", "checksum");
+    std::fs::write(&p1, &kept).unwrap();
+    // Duplicated: shard 0's partial under shard 1's name.
+    std::fs::copy(shards.join("out.glb.shard-0-of-3"), &p1).unwrap();
+    refused("duplicated", "under another shard's name");
+    std::fs::write(&p1, &kept).unwrap();
+    // Another N beside the set.
+    let other_n = shards.join("other");
+    std::fs::create_dir(&other_n).unwrap();
+    let o2 = other_n.join("out.glb");
+    let mut args = bake_args(input, o2.to_str().unwrap());
+    args.extend(["--shard", "0/2"]);
+    ok(&aobake(&args));
+    std::fs::copy(
+        other_n.join("out.glb.shard-0-of-2"),
+        shards.join("out.glb.shard-0-of-2"),
+    )
+    .unwrap();
+    refused("other N", "of 2");
+    std::fs::remove_file(shards.join("out.glb.shard-0-of-2")).unwrap();
+    // Other settings (seed).
+    let mut args = bake_args(input, o2.to_str().unwrap());
+    args.extend(["--shard", "1/3", "--seed", "7"]);
+    ok(&aobake(&args));
+    std::fs::copy(other_n.join("out.glb.shard-1-of-3"), &p1).unwrap();
+    refused("other settings", "other settings");
+    // Another input.
+    let moved = dir.path().join("other_input.glb");
+    let (mut json, bin) = common::split(&std::fs::read(cornell()).unwrap());
+    json["asset"]["generator"] = Value::String("another file".into());
+    std::fs::write(&moved, aobake::gltf::container::glb_bytes(&json, &bin)).unwrap();
+    let mut args = bake_args(moved.to_str().unwrap(), o2.to_str().unwrap());
+    args.extend(["--shard", "1/3"]);
+    ok(&aobake(&args));
+    std::fs::copy(other_n.join("out.glb.shard-1-of-3"), &p1).unwrap();
+    refused("other input", "another input");
+    // Re-running the shard replaces its partial, and the set merges.
+    let mut args = bake_args(input, out_s);
+    args.extend(["--shard", "1/3"]);
+    ok(&aobake(&args));
+    ok(&aobake(&["merge", out_s, "-q"]));
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(&single).unwrap()
+    );
+    // No temporary file is left beside the partials.
+    assert!(partials(&shards).iter().all(|n| !n.ends_with(".tmp")));
+}
+
+#[test]
+fn a_shard_killed_midway_leaves_no_partial() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.glb");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cornell_box.glb");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_aobake"))
+        .args([
+            input.to_str().unwrap(),
+            out.to_str().unwrap(),
+            "--texel-density",
+            "0.3",
+            "--page-size",
+            "256",
+            "--method",
+            "mc",
+            "--rays",
+            "100000",
+            "--shard",
+            "0/1",
+            "-q",
+        ])
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let names = partials(dir.path());
+    assert!(
+        names.iter().all(|n| !n.contains(".shard-")),
+        "a killed shard left {names:?}"
+    );
+    let o = aobake(&["merge", out.to_str().unwrap(), "-q"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no partial"));
+}
