@@ -306,3 +306,76 @@ fn a_shard_killed_midway_leaves_no_partial() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("no partial"));
 }
+
+/// The Kubernetes example's command lines, run as its Indexed Job's pods
+/// would (each with its JOB_COMPLETION_INDEX), on the Cornell box: the
+/// merge Job's command then writes the one-process bake's bytes.
+#[test]
+fn the_kubernetes_indexed_job_commands_bake_and_merge() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/kubernetes");
+    let job = std::fs::read_to_string(dir.join("bake-level.yaml")).unwrap();
+    let merge = std::fs::read_to_string(dir.join("merge.yaml")).unwrap();
+    assert!(job.contains("completionMode: Indexed"));
+    let completions: u32 = job
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("completions: "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    // The list under `command:`.
+    let command: Vec<String> = job
+        .lines()
+        .skip_while(|l| l.trim() != "command:")
+        .skip(1)
+        .map_while(|l| l.trim().strip_prefix("- "))
+        .map(|a| a.trim_matches('"').to_string())
+        .collect();
+    assert_eq!(command[0], "aobake");
+    assert!(
+        command.contains(&format!("auto/{completions}")),
+        "{command:?}"
+    );
+
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("level.glb");
+    let input = cornell();
+    let local = |a: &str| -> String {
+        match a {
+            "/level/in/level.glb" => input.to_str().unwrap().to_string(),
+            "/level/out/level.glb" => out.to_str().unwrap().to_string(),
+            "28" => DENSITY.to_string(),
+            "4096" => PAGE.to_string(),
+            a => a.to_string(),
+        }
+    };
+    let args: Vec<String> = command[1..].iter().map(|a| local(a)).collect();
+    for index in 0..completions {
+        let o = Command::new(env!("CARGO_BIN_EXE_aobake"))
+            .args(&args)
+            .args(["--quality", "16"])
+            .env_remove("SLURM_ARRAY_TASK_ID")
+            .env("JOB_COMPLETION_INDEX", index.to_string())
+            .output()
+            .unwrap();
+        ok(&o);
+    }
+    let merge_line = merge
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("command: ["))
+        .unwrap()
+        .trim_end_matches(']');
+    let merge_args: Vec<String> = merge_line.split(", ").skip(1).map(local).collect();
+    ok(&aobake(
+        &merge_args.iter().map(String::as_str).collect::<Vec<_>>(),
+    ));
+
+    let single = tmp.path().join("single.glb");
+    ok(&aobake(&bake_args(
+        input.to_str().unwrap(),
+        single.to_str().unwrap(),
+    )));
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(&single).unwrap()
+    );
+}
