@@ -15,6 +15,7 @@ use crate::bake::Bake;
 use crate::error::{Error, Result};
 use crate::sh::{SH_COUNT, VIS_COUNT};
 use image::ImageEncoder;
+use rayon::prelude::*;
 use std::path::Path;
 
 /// Float lightmap images, row-major, row 0 at the top (glTF v = 0).
@@ -74,18 +75,18 @@ pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Ligh
         width: receivers.width,
         height: receivers.height,
         ao: fill
-            .iter()
+            .par_iter()
             .map(|t| pick(t).map_or(1.0, |r| bake.ao[r]))
             .collect(),
         sh: fill
-            .iter()
+            .par_iter()
             .map(|t| pick(t).map_or([0.0; SH_COUNT], |r| bake.sh[r]))
             .collect(),
         covered,
         // A gutter texel far from any receiver: the open hemisphere of +z
         // would be as arbitrary; zero, as for the SH.
         visibility: layer.map(|v| {
-            fill.iter()
+            fill.par_iter()
                 .map(|t| pick(t).map_or([0.0; VIS_COUNT], |r| v[r]))
                 .collect()
         }),
@@ -147,16 +148,14 @@ pub fn sh_range<const N: usize>(sh: &[[f32; N]]) -> ([f32; N], [f32; N]) {
     (scale, offset)
 }
 
-/// RGBA8 pages of the first `count` coefficients of `values`, 4 per page
-/// (`channel_i = (c_i - offset_i) / scale_i`; a page's unused channels
-/// hold 0, 0, 255), with the scale and offset of each.
+/// The RGBA8 channels of the first `count` coefficients of `values`, 4 per
+/// page (`channel_i = (c_i - offset_i) / scale_i`; a page's unused
+/// channels hold 0, 0, 255), with the scale and offset of each.
 #[allow(clippy::type_complexity)]
-fn rgba_pages<const N: usize>(
-    w: u32,
-    h: u32,
+fn rgba_channels<const N: usize>(
     values: &[[f32; N]],
     count: usize,
-) -> Result<(Vec<Vec<u8>>, [f32; N], [f32; N])> {
+) -> (Vec<Vec<u8>>, [f32; N], [f32; N]) {
     let (scale, offset) = sh_range(values);
     let channel = |c: &[f32; N], i: usize| -> u8 {
         if scale[i] > 0.0 {
@@ -165,46 +164,65 @@ fn rgba_pages<const N: usize>(
             0
         }
     };
-    let mut pages = Vec::new();
-    for p in 0..count.div_ceil(4) {
-        let mut rgba = Vec::with_capacity(values.len() * 4);
-        for c in values {
-            for k in 0..4 {
-                let i = p * 4 + k;
-                rgba.push(if i < count {
-                    channel(c, i)
-                } else if k == 3 {
-                    255
-                } else {
-                    0
-                });
-            }
-        }
-        pages.push(png(w, h, &rgba, image::ExtendedColorType::Rgba8)?);
-    }
-    Ok((pages, scale, offset))
+    let pages = (0..count.div_ceil(4))
+        .into_par_iter()
+        .map(|p| {
+            values
+                .par_iter()
+                .flat_map_iter(|c| {
+                    (0..4).map(move |k| {
+                        let i = p * 4 + k;
+                        if i < count {
+                            channel(c, i)
+                        } else if k == 3 {
+                            255
+                        } else {
+                            0
+                        }
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    (pages, scale, offset)
 }
 
 /// Encodes the lightmap per the output contract; the visibility layer, if
 /// any, to `visibility_order` (2: 9 coefficients, 3: 16).
 pub fn encode(lm: &Lightmap, visibility_order: u32) -> Result<Encoded> {
     let (w, h) = (lm.width, lm.height);
-    let ao: Vec<u8> = lm.ao.iter().map(|&a| to_u8(a)).collect();
-    let occlusion_png = png(w, h, &ao, image::ExtendedColorType::L8)?;
-    let (sh_png, sh_scale, sh_offset) = rgba_pages(w, h, &lm.sh, SH_COUNT)?;
-    let sh_png: [Vec<u8>; 3] = sh_png.try_into().expect("3 SH pages");
     let count = ((visibility_order + 1) * (visibility_order + 1)) as usize;
-    let visibility = match &lm.visibility {
-        Some(v) => {
-            let (png, scale, offset) = rgba_pages(w, h, v, count.min(VIS_COUNT))?;
-            Some(EncodedVisibility {
-                png,
-                scale: scale[..count].to_vec(),
-                offset: offset[..count].to_vec(),
-            })
-        }
-        None => None,
-    };
+    // Channels first, then every image compressed on a thread of its own.
+    let ao: Vec<u8> = lm.ao.par_iter().map(|&a| to_u8(a)).collect();
+    let (sh, sh_scale, sh_offset) = rgba_channels(&lm.sh, SH_COUNT);
+    let layer = lm
+        .visibility
+        .as_ref()
+        .map(|v| rgba_channels(v, count.min(VIS_COUNT)));
+    let mut images: Vec<(&[u8], image::ExtendedColorType)> =
+        vec![(&ao, image::ExtendedColorType::L8)];
+    images.extend(
+        sh.iter()
+            .map(|c| (c.as_slice(), image::ExtendedColorType::Rgba8)),
+    );
+    if let Some((v, _, _)) = &layer {
+        images.extend(
+            v.iter()
+                .map(|c| (c.as_slice(), image::ExtendedColorType::Rgba8)),
+        );
+    }
+    let mut pngs = images
+        .par_iter()
+        .map(|&(data, color)| png(w, h, data, color))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter();
+    let occlusion_png = pngs.next().expect("the AO image");
+    let sh_png: [Vec<u8>; 3] = [0; 3].map(|_| pngs.next().expect("3 SH images"));
+    let visibility = layer.map(|(_, scale, offset)| EncodedVisibility {
+        png: pngs.collect(),
+        scale: scale[..count].to_vec(),
+        offset: offset[..count].to_vec(),
+    });
     Ok(Encoded {
         occlusion_png,
         sh_png,

@@ -66,8 +66,8 @@ impl Receivers {
 
     /// The receivers in `order` (`order[new] = old`, a permutation).
     pub fn permuted(&self, order: &[u32]) -> Receivers {
-        fn pick<T: Copy>(v: &[T], order: &[u32]) -> Vec<T> {
-            order.iter().map(|&i| v[i as usize]).collect()
+        fn pick<T: Copy + Send + Sync>(v: &[T], order: &[u32]) -> Vec<T> {
+            order.par_iter().map(|&i| v[i as usize]).collect()
         }
         Receivers {
             texel: pick(&self.texel, order),
