@@ -146,9 +146,19 @@ impl Atlas {
         }
     }
 
+    /// Per page, the triangles on it.
+    pub fn page_triangles(&self) -> Vec<usize> {
+        let mut n = vec![0; self.pages.len()];
+        for m in &self.meshes {
+            for &p in &m.triangle_page {
+                n[p as usize] += 1;
+            }
+        }
+        n
+    }
+
     /// Per page, the texels its triangles cover (their UV area; the
-    /// rasterizer's conservative edges add a little): how shards balance
-    /// pages before any is rasterized.
+    /// rasterizer's conservative edges add a little).
     pub fn page_areas(&self) -> Vec<f64> {
         let mut area = vec![0.0; self.pages.len()];
         for m in &self.meshes {

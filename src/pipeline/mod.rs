@@ -241,6 +241,7 @@ pub fn level_report(
     let rays: u64 = done.iter().map(|d| d.rays).sum();
     let pass_seconds: f64 = done.iter().map(|d| d.pass_seconds).sum();
     let chart_texels = level.atlas.page_areas();
+    let triangles = level.atlas.page_triangles();
     let pages = level
         .atlas
         .pages
@@ -253,6 +254,7 @@ pub fn level_report(
                 width: size.width,
                 height: size.height,
                 chart_texels: chart_texels[k],
+                triangles: triangles[k],
                 baked: d.is_some(),
                 texels: d.map_or(0, |d| d.texels),
                 texels_inside: d.map_or(0, |d| d.texels_inside),

@@ -74,6 +74,8 @@ pub struct PageReport {
     pub height: u32,
     /// Texels its charts cover (their UV area), known before baking.
     pub chart_texels: f64,
+    /// Triangles on it.
+    pub triangles: usize,
     /// Whether this run baked it (false: another shard's).
     pub baked: bool,
     /// Receivers (covered texels); 0 when not baked here.

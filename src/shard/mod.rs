@@ -7,8 +7,8 @@
 //! `OUT.shard-I-of-N` ([`partial`]), written atomically; then [`merge`]
 //! checks that the set is complete and of one bake and writes OUT.
 //!
-//! Pages are dealt to shards by their chart texels, largest first, each
-//! to the shard with the fewest so far ([`assign`]). Every shard unwraps
+//! Pages are dealt to shards by their predicted cost ([`page_cost`]),
+//! largest first, each to the shard with the least so far ([`assign`]). Every shard unwraps
 //! the same atlas (the unwrap is deterministic) and bakes its pages with
 //! the same per-page seeds as a bake in one process, so its encoded
 //! images are the same bytes; the merge loads the input, unwraps again
@@ -109,9 +109,24 @@ pub fn partial_path(output: &Path, shard: Shard) -> PathBuf {
     output.with_file_name(name)
 }
 
-/// Deals pages (their texel counts in `texels`) to `count` shards: the
-/// largest first, each to the shard with the fewest texels so far (ties:
-/// the lower shard). Each shard's pages ascending.
+/// Weight of geometric detail in [`page_cost`].
+pub const DETAIL_WEIGHT: f64 = 90.0;
+
+/// A page's predicted bake cost, in texel units, from what is known
+/// before any ray: its chart texels t and triangles n, as
+/// t (1 + [`DETAIL_WEIGHT`] sqrt(n / t)). sqrt(n / t) is the inverse of a
+/// triangle's edge in texels: pages of fine geometry have occluders within
+/// a few texels of their receivers, where the adaptive method spends its
+/// rays. Fitted on Sponza at density 28 on 8 pages of 1024, whose rays per
+/// texel range from 23 to 139 (texels alone predict the shards' loads
+/// 2.3 M / 2.2 M / 1.7 M texels and took 16.5 / 27.1 / 8.4 s).
+pub fn page_cost(texels: f64, triangles: usize) -> f64 {
+    texels + DETAIL_WEIGHT * (triangles as f64 * texels).sqrt()
+}
+
+/// Deals pages (their costs in `texels`) to `count` shards: the largest
+/// first, each to the shard with the least so far (ties: the lower
+/// shard). Each shard's pages ascending.
 pub fn assign(texels: &[f64], count: u32) -> Vec<Vec<u32>> {
     let mut order: Vec<u32> = (0..texels.len() as u32).collect();
     order.sort_by(|&a, &b| {
@@ -188,7 +203,11 @@ pub fn run_shard(
     let scene = gltf::load(input)?;
     timer.lap("load");
     let level = pipeline::prepare_level(&scene, s, &mut timer)?;
-    let mine = assign(&level.atlas.page_areas(), shard.count).swap_remove(shard.index as usize);
+    let costs: Vec<f64> = (level.atlas.page_areas().into_iter())
+        .zip(level.atlas.page_triangles())
+        .map(|(t, n)| page_cost(t, n))
+        .collect();
+    let mine = assign(&costs, shard.count).swap_remove(shard.index as usize);
     let done = pipeline::bake_pages(&scene, &level, &mine, s, &mut timer, &mut |_, _, _| {})?;
     let header = PartialHeader {
         format: FORMAT,
