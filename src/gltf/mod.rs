@@ -13,11 +13,13 @@
 //! - [`accessor`]: typed reads (strides, sparse, normalized, quantized);
 //! - [`scene`]: nodes, transforms, primitives, instancing, bake space;
 //! - [`write`](mod@write): the document edited as `serde_json::Value`,
-//!   images appended to BIN, URIs relocated to the output's directory.
+//!   images appended to BIN;
+//! - [`uris`]: URIs relocated to the output's directory.
 
 pub mod accessor;
 pub mod container;
 pub mod scene;
+pub mod uris;
 pub mod write;
 
 pub use container::Document;

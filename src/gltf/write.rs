@@ -10,14 +10,19 @@
 //!   index), new triangle-list indices (`mode` 4), and
 //!   `extensions.AOBAKE_lightmap`;
 //! - a mesh placed by several nodes is copied so each node owns its lightmap
-//!   region; materials gain `occlusionTexture` (copied where shared across UV
-//!   sets or with unbaked primitives); four PNG images, their textures and a
-//!   sampler are appended; the root gains `extensions.AOBAKE_lightmap` and
-//!   the name in `extensionsUsed`.
+//!   region; a primitive with charts on several atlas pages becomes one
+//!   primitive per page in its mesh; materials gain `occlusionTexture`
+//!   (copied where shared across UV sets, pages or with unbaked
+//!   primitives); each page's PNG images and their textures, and one
+//!   sampler, are appended; the root gains `extensions.AOBAKE_lightmap`
+//!   and the name in `extensionsUsed`;
+//! - relative URIs of external buffers and images are rewritten to resolve
+//!   from the output's directory ([`super::uris`]).
 
 use super::accessor::{self, Component, RawAccessor, array};
-use super::container::{Document, glb_bytes, percent_decode};
+use super::container::{Document, glb_bytes};
 use super::scene::Scene;
+use super::uris::relocate_uris;
 use crate::atlas::Atlas;
 use crate::atlas::unwrap::ChartedMesh;
 use crate::encode::Encoded;
@@ -25,7 +30,7 @@ use crate::error::{Error, Result};
 use crate::geometry::BakeGeometry;
 use serde_json::{Value, json};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// The extension name written to primitives and the root.
 pub const EXTENSION: &str = "AOBAKE_lightmap";
@@ -601,62 +606,4 @@ fn assign_materials(json: &mut Value, mode: OcclusionMode) {
             json["meshes"][mi]["primitives"][pi]["material"] = json!(target);
         }
     }
-}
-
-/// Percent-encodes the characters a relative URI cannot hold.
-fn encode_uri_path(p: &str) -> String {
-    let mut out = String::with_capacity(p.len());
-    for c in p.chars() {
-        match c {
-            ' ' => out.push_str("%20"),
-            '%' => out.push_str("%25"),
-            '#' => out.push_str("%23"),
-            '?' => out.push_str("%3F"),
-            '\\' => out.push('/'),
-            c => out.push(c),
-        }
-    }
-    out
-}
-
-/// The path of `target` relative to directory `base` (both absolute).
-fn relative_path(target: &Path, base: &Path) -> std::path::PathBuf {
-    let t: Vec<_> = target.components().collect();
-    let b: Vec<_> = base.components().collect();
-    let common = t.iter().zip(&b).take_while(|(x, y)| x == y).count();
-    let mut out = std::path::PathBuf::new();
-    for _ in common..b.len() {
-        out.push("..");
-    }
-    for c in &t[common..] {
-        out.push(c);
-    }
-    out
-}
-
-/// Rewrites the relative URIs of external buffers and images so they still
-/// resolve from `to_dir` (the output's directory) instead of `from_dir`.
-pub fn relocate_uris(json: &mut Value, from_dir: &Path, to_dir: &Path) -> Result<()> {
-    let from = std::fs::canonicalize(from_dir).map_err(|e| Error::io(from_dir, e))?;
-    let to = std::fs::canonicalize(to_dir).map_err(|e| Error::io(to_dir, e))?;
-    if from == to {
-        return Ok(());
-    }
-    for key in ["buffers", "images"] {
-        let Some(items) = json.get_mut(key).and_then(Value::as_array_mut) else {
-            continue;
-        };
-        for item in items {
-            let Some(uri) = item.get("uri").and_then(Value::as_str) else {
-                continue;
-            };
-            if uri.starts_with("data:") || uri.contains("://") || uri.starts_with('/') {
-                continue;
-            }
-            let decoded = percent_decode(uri);
-            let rel = relative_path(&from.join(decoded), &to);
-            item["uri"] = json!(encode_uri_path(&rel.to_string_lossy()));
-        }
-    }
-    Ok(())
 }
