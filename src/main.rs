@@ -346,9 +346,10 @@ fn run_merge(cli: &MergeCli) -> anyhow::Result<()> {
             eprintln!("aobake: warning: {w}");
         }
         eprintln!(
-            "aobake: merged {} shards ({} pages of {}) into {}",
+            "aobake: merged {} shards ({} page{} of {}) into {}",
             merged.shards,
             merged.pages,
+            if merged.pages == 1 { "" } else { "s" },
             merged.input.display(),
             cli.output.display()
         );
