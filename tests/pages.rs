@@ -379,3 +379,70 @@ fn the_kubernetes_indexed_job_commands_bake_and_merge() {
         std::fs::read(&single).unwrap()
     );
 }
+
+/// Mean AO jump at seams whose sides lie on different pages, each side
+/// looked up bilinearly in its own page's float lightmap.
+fn cross_page_jump(scene: &aobake::gltf::Scene, seams: aobake::settings::SeamMode) -> (usize, f64) {
+    use aobake::seams::{
+        SMOOTH_DEGREES, anchor::point_count, find::cross_page_seams, metric::taps,
+    };
+    let s = aobake::Settings {
+        size: aobake::atlas::AtlasSize::TexelDensity {
+            density: 3.0,
+            page_size: 128,
+        },
+        seams,
+        progress: false,
+        adaptive: aobake::bake::adaptive::AdaptiveOptions {
+            quality: 32,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let mut timer = aobake::stage::StageTimer::new();
+    let level = aobake::pipeline::prepare_level(scene, &s, &mut timer).unwrap();
+    let pages: Vec<u32> = (0..level.page_count()).collect();
+    let mut ao = vec![(0, 0, Vec::new()); pages.len()];
+    aobake::pipeline::bake_pages(scene, &level, &pages, &s, &mut timer, &mut |p, _, out| {
+        ao[p.page as usize] = (out.lightmap.width, out.lightmap.height, out.lightmap.ao);
+    })
+    .unwrap();
+    let cross = cross_page_seams(&level.geometry.receivers, &level.atlas, SMOOTH_DEGREES);
+    let (mut sum, mut n) = (0.0, 0usize);
+    for seam in &cross {
+        let points = point_count(seam, &level.atlas.pages);
+        for i in 0..points {
+            let t = (i as f32 + 0.5) / points as f32;
+            let side = |k: usize| -> f32 {
+                let (w, h, img) = &ao[seam.page[k] as usize];
+                let uv = seam.uv[k];
+                let at = [
+                    uv[0][0] + (uv[1][0] - uv[0][0]) * t,
+                    uv[0][1] + (uv[1][1] - uv[0][1]) * t,
+                ];
+                taps(at, *w, *h)
+                    .iter()
+                    .map(|&(x, wt)| wt * img[x as usize])
+                    .sum()
+            };
+            sum += (side(0) - side(1)).abs() as f64;
+            n += 1;
+        }
+    }
+    (cross.len(), sum / n.max(1) as f64)
+}
+
+/// Seams across pages: both sides are stitched to the target they
+/// compute alike, so the jump a viewer sees between the pages falls.
+#[test]
+fn seams_across_pages_are_stitched_to_a_shared_target() {
+    let Some(scene) = common::shared_scene("sponza_dabrovic.glb") else {
+        return;
+    };
+    let (count, off) = cross_page_jump(&scene, aobake::settings::SeamMode::Off);
+    let (_, stitched) = cross_page_jump(&scene, aobake::settings::SeamMode::Stitch);
+    eprintln!("{count} cross-page seams: AO jump mean {off:.4} -> {stitched:.4}");
+    assert!(count > 100, "{count} cross-page seams");
+    assert!(off > 0.05, "unstitched jump {off}");
+    assert!(stitched < 0.4 * off, "{off} -> {stitched}");
+}

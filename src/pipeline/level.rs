@@ -13,9 +13,11 @@ use crate::bake::validity;
 use crate::error::{Error, Result};
 use crate::geometry::BakeGeometry;
 use crate::gltf::Scene;
+use crate::seams::find::cross_page_seams;
+use crate::seams::{CrossSeam, SMOOTH_DEGREES};
 use crate::settings::{
-    DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, Settings, UvSource, VisibilityMode,
-    estimated_bytes_with,
+    DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, SeamMode, Settings, UvSource,
+    VisibilityMode, estimated_bytes_with,
 };
 use crate::stage::{StageTimer, progress_bar};
 use crate::trace::Tracer;
@@ -34,6 +36,8 @@ pub struct Level {
     /// Per receiver mesh: it gets the visibility layer (`--visibility`,
     /// `auto` from its material).
     pub visibility_meshes: Vec<bool>,
+    /// Smooth seams whose sides lie on two pages (`--seams stitch`).
+    pub cross_seams: Arc<Vec<CrossSeam>>,
 }
 
 /// One page of a level, prepared: every stage before the first ray.
@@ -53,6 +57,10 @@ pub struct Prepared {
     /// adaptive method, in its pre-pass).
     pub inside: Option<Vec<bool>>,
     pub visibility_meshes: Vec<bool>,
+    /// The level's seams that cross pages, and every page's size: the
+    /// stitch pulls this page's side of them to a shared target.
+    pub cross_seams: Arc<Vec<CrossSeam>>,
+    pub pages: Vec<atlas::PageSize>,
 }
 
 impl Prepared {
@@ -175,6 +183,11 @@ pub fn prepare_level(scene: &Scene, s: &Settings, timer: &mut StageTimer) -> Res
     let tracer = Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
     timer.lap("bvh");
     let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
+    let cross_seams = if s.seams == SeamMode::Stitch && atlas.pages.len() > 1 {
+        cross_page_seams(&geometry.receivers, &atlas, SMOOTH_DEGREES)
+    } else {
+        Vec::new()
+    };
     Ok(Level {
         geometry: Arc::new(geometry),
         atlas,
@@ -182,6 +195,7 @@ pub fn prepare_level(scene: &Scene, s: &Settings, timer: &mut StageTimer) -> Res
         max_distance_world,
         max_distance,
         visibility_meshes,
+        cross_seams: Arc::new(cross_seams),
     })
 }
 
@@ -252,6 +266,8 @@ impl Level {
             max_distance: self.max_distance,
             inside,
             visibility_meshes: self.visibility_meshes.clone(),
+            cross_seams: Arc::clone(&self.cross_seams),
+            pages: self.atlas.pages.clone(),
         })
     }
 }

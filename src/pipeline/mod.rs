@@ -352,6 +352,7 @@ pub fn output(
         max_distance_world: p.max_distance_world,
         max_distance: p.max_distance,
         visibility_meshes: p.visibility_meshes.clone(),
+        cross_seams: Arc::clone(&p.cross_seams),
     };
     let (glb, warnings) = write(scene, &level, &[&encoded], s, output_dir, timer)?;
     Ok(Output {

@@ -148,8 +148,19 @@ pub fn output_page(
             seams::jump_map(&points, w, h)
         };
         let before = debug_dir.as_ref().map(|_| map(&lightmap));
+        // Seams to other pages: this side meets the target both compute.
+        let anchors = seams::anchor::anchors(
+            &p.cross_seams,
+            p.page,
+            &p.pages,
+            &p.tracer,
+            p.max_distance,
+            s.seed,
+            lightmap.visibility.is_some(),
+        );
         let report = seams::stitch_page(
             &found,
+            &anchors,
             p.geometry.space.diagonal,
             w,
             h,

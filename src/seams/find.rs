@@ -56,6 +56,27 @@ struct Side {
     uv: [[f32; 2]; 2],
     normal: [Vec3; 2],
     length: f32,
+    page: u32,
+    ends: [Vec3; 2],
+    face: Vec3,
+}
+
+/// A smooth seam whose two sides lie on different atlas pages: what both
+/// pages need to agree on it without the other's images. Side 0 is the
+/// first page's (`page[0] < page[1]`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CrossSeam {
+    pub page: [u32; 2],
+    /// `uv[side][end]`, in that side's page.
+    pub uv: [[[f32; 2]; 2]; 2],
+    /// Bake-space endpoints.
+    pub ends: [Vec3; 2],
+    /// Unit vertex normals at the ends, the two sides' averaged.
+    pub normal: [Vec3; 2],
+    /// Unit face normal, the two sides' averaged.
+    pub face: Vec3,
+    /// Length in bake units.
+    pub length: f32,
 }
 
 /// Position key: bake-space coordinates on a 2^-24 grid (bake space spans
@@ -64,13 +85,15 @@ fn key(p: [f32; 3]) -> [i64; 3] {
     p.map(|c| (c as f64 * (1u64 << 24) as f64).round() as i64)
 }
 
-/// The smooth seams of `atlas` (see the module doc): vertex normals within
-/// `max_degrees` at both ends.
-pub fn smooth_seams(meshes: &[ReceiverMesh], atlas: &Atlas, max_degrees: f32) -> Vec<Seam> {
-    let min_cos = max_degrees.to_radians().cos();
+/// Every shared world edge and the triangles' views of it.
+fn edge_sides(meshes: &[ReceiverMesh], atlas: &Atlas) -> HashMap<([i64; 3], [i64; 3]), Vec<Side>> {
     let mut edges: HashMap<([i64; 3], [i64; 3]), Vec<Side>> = HashMap::new();
     for (m, charted) in meshes.iter().zip(&atlas.meshes) {
-        for tri in charted.triangles.chunks_exact(3) {
+        for (tri, &page) in charted
+            .triangles
+            .chunks_exact(3)
+            .zip(&charted.triangle_page)
+        {
             let corner = |i: u32| {
                 let input = charted.xref[i as usize] as usize;
                 (m.positions[input], charted.uv[i as usize], input)
@@ -96,14 +119,27 @@ pub fn smooth_seams(meshes: &[ReceiverMesh], atlas: &Atlas, max_degrees: f32) ->
                         .as_ref()
                         .map_or(face, |n| Vec3::from(n[input]).normalize_or_zero())
                 };
+                let ends = [Vec3::from(s.0), Vec3::from(t.0)];
                 edges.entry((ks, kt)).or_default().push(Side {
                     uv: [s.1, t.1],
                     normal: [normal(s.2), normal(t.2)],
-                    length: (Vec3::from(t.0) - Vec3::from(s.0)).length(),
+                    length: (ends[1] - ends[0]).length(),
+                    page,
+                    ends,
+                    face: if m.mirrored { -face } else { face },
                 });
             }
         }
     }
+    edges
+}
+
+/// The smooth seams of `atlas` (see the module doc): vertex normals within
+/// `max_degrees` at both ends, both sides on one page (every seam of a
+/// one-page atlas).
+pub fn smooth_seams(meshes: &[ReceiverMesh], atlas: &Atlas, max_degrees: f32) -> Vec<Seam> {
+    let min_cos = max_degrees.to_radians().cos();
+    let edges = edge_sides(meshes, atlas);
     let mut seams: Vec<Seam> = edges
         .into_values()
         .filter_map(|sides| {
@@ -114,7 +150,7 @@ pub fn smooth_seams(meshes: &[ReceiverMesh], atlas: &Atlas, max_degrees: f32) ->
                 (a.uv[e][0] - b.uv[e][0]).abs() < 1e-7 && (a.uv[e][1] - b.uv[e][1]).abs() < 1e-7
             });
             let smooth = (0..2).all(|e| a.normal[e].dot(b.normal[e]) >= min_cos);
-            (!same_uv && smooth).then_some(Seam {
+            (!same_uv && smooth && a.page == b.page).then_some(Seam {
                 a: a.uv,
                 b: b.uv,
                 length: a.length,
@@ -128,6 +164,46 @@ pub fn smooth_seams(meshes: &[ReceiverMesh], atlas: &Atlas, max_degrees: f32) ->
                 s.a[0][0], s.a[0][1], s.a[1][0], s.a[1][1], s.b[0][0], s.b[0][1],
             ]
         };
+        k(x).partial_cmp(&k(y)).unwrap_or(std::cmp::Ordering::Equal)
+    });
+    seams
+}
+
+/// The smooth seams of a multi-page `atlas` whose two sides lie on
+/// different pages, in a deterministic order.
+pub fn cross_page_seams(
+    meshes: &[ReceiverMesh],
+    atlas: &Atlas,
+    max_degrees: f32,
+) -> Vec<CrossSeam> {
+    let min_cos = max_degrees.to_radians().cos();
+    let mut seams: Vec<CrossSeam> = edge_sides(meshes, atlas)
+        .into_values()
+        .filter_map(|sides| {
+            let [a, b] = sides.as_slice() else {
+                return None;
+            };
+            let smooth = (0..2).all(|e| a.normal[e].dot(b.normal[e]) >= min_cos);
+            if !smooth || a.page == b.page {
+                return None;
+            }
+            let (a, b) = if a.page < b.page { (a, b) } else { (b, a) };
+            let average = |x: Vec3, y: Vec3| (x + y).normalize_or(x);
+            Some(CrossSeam {
+                page: [a.page, b.page],
+                uv: [a.uv, b.uv],
+                ends: a.ends,
+                normal: [
+                    average(a.normal[0], b.normal[0]),
+                    average(a.normal[1], b.normal[1]),
+                ],
+                face: average(a.face, b.face),
+                length: a.length,
+            })
+        })
+        .collect();
+    seams.sort_by(|x, y| {
+        let k = |s: &CrossSeam| [s.ends[0].to_array(), s.ends[1].to_array()];
         k(x).partial_cmp(&k(y)).unwrap_or(std::cmp::Ordering::Equal)
     });
     seams

@@ -10,14 +10,18 @@
 //! 2. [`metric`]: the jump a viewer sees along them (bilinear lookups on
 //!    both sides, weighted by world length);
 //! 3. [`solve`]: least-squares stitching of the border and gutter texels
-//!    in the seams' bilinear footprints.
+//!    in the seams' bilinear footprints;
+//! 4. [`anchor`]: for seams whose sides lie on two pages, the target both
+//!    pages' sides are stitched to.
 
+pub mod anchor;
 pub mod find;
 pub mod metric;
 pub mod solve;
 
-pub use find::Seam;
+pub use find::{CrossSeam, Seam};
 pub use metric::SeamFigures;
+pub use solve::Anchor;
 pub use solve::StitchStats;
 
 use crate::sh::{SH_COUNT, VIS_COUNT};
@@ -36,15 +40,47 @@ pub struct SeamReport {
     pub before: SeamFigures,
     pub after: SeamFigures,
     pub solve: StitchStats,
+    /// Seams whose other side is on another page: this page's side
+    /// against the shared target.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_page: Option<CrossPageFigures>,
+}
+
+/// This page's side of its cross-page seams against their targets.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct CrossPageFigures {
+    /// Anchor points (3 per texel of seam length).
+    pub points: usize,
+    /// Mean |AO lookup - AO target| before and after stitching.
+    pub ao_before: f64,
+    pub ao_after: f64,
+}
+
+/// Mean |AO lookup - AO target| over `anchors`.
+fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f64 {
+    let sum: f64 = anchors
+        .iter()
+        .map(|a| {
+            let v: f32 = metric::taps(a.uv, width, height)
+                .iter()
+                .map(|&(t, w)| w * ao[t as usize])
+                .sum();
+            (v - a.target[0]).abs() as f64
+        })
+        .sum();
+    sum / anchors.len().max(1) as f64
 }
 
 /// Stitches the page's images in place (AO clamped to [0, 1] after) along
 /// `seams` (bake units; `diagonal` turns lengths into world units).
 /// [`interior`] texels (by `covered`, the texels with a receiver of their
 /// own) keep their values; the others (border and gutter texels) move.
+/// `anchors`: this page's side of seams that cross pages
+/// ([`anchor::anchors`]), pulled to their targets.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
+    anchors: &[Anchor],
     diagonal: f64,
     width: u32,
     height: u32,
@@ -54,11 +90,12 @@ pub fn stitch_page(
     visibility: Option<&mut [[f32; VIS_COUNT]]>,
 ) -> SeamReport {
     let before = metric::measure(seams, width, height, ao, sh);
+    let gap_before = anchor_gap(anchors, width, height, ao);
     let channels = 1 + SH_COUNT + if visibility.is_some() { VIS_COUNT } else { 0 };
     let (texels, values, solve) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
         let fixed = |t: u32| interior(covered, width, height, t);
-        solve::stitch(seams, width, height, channels, fixed, |t, out| {
+        solve::stitch(seams, anchors, width, height, channels, fixed, |t, out| {
             let t = t as usize;
             out[0] = ao[t];
             out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);
@@ -77,12 +114,18 @@ pub fn stitch_page(
         }
     }
     let after = metric::measure(seams, width, height, ao, sh);
+    let cross_page = (!anchors.is_empty()).then(|| CrossPageFigures {
+        points: anchors.len(),
+        ao_before: gap_before,
+        ao_after: anchor_gap(anchors, width, height, ao),
+    });
     SeamReport {
         seams: seams.len(),
         length: seams.iter().map(|s| s.length as f64).sum::<f64>() * diagonal,
         before,
         after,
         solve,
+        cross_page,
     }
 }
 

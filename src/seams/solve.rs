@@ -62,6 +62,17 @@ type LocalRow = Vec<(usize, f64)>;
 struct Row {
     free: Vec<(u32, f64)>,
     fixed: Vec<(u32, f64)>,
+    /// For a one-sided constraint: the [`Anchor`] its lookup must meet.
+    anchor: Option<usize>,
+}
+
+/// A one-sided constraint: the page's bilinear lookup at `uv` should
+/// equal `target` (one value per channel), for a seam whose other side is
+/// on another page ([`super::anchor`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Anchor {
+    pub uv: [f32; 2],
+    pub target: Vec<f32>,
 }
 
 /// The stitched values of a `width` x `height` page along `seams`:
@@ -71,10 +82,13 @@ struct Row {
 /// better at covered texels and worse at the seams (Sponza 1024, covered
 /// weight 4: AO RMSE of the moved covered texels 0.0894 against 0.0997,
 /// seam jump mean 0.0108 against 0.0042; weight 16: 0.0696, 0.0282).
-/// Returns the texels that are unknowns, their new values (`channels`
-/// each, in the same order) and what the solve did.
+/// `anchors` add one-sided constraints (lookup = target) of the same
+/// weight. Returns the texels that are unknowns, their new values
+/// (`channels` each, in the same order) and what the solve did.
+#[allow(clippy::too_many_arguments)]
 pub fn stitch(
     seams: &[Seam],
+    anchors: &[Anchor],
     width: u32,
     height: u32,
     channels: usize,
@@ -85,41 +99,52 @@ pub fn stitch(
     let mut unknown_of: HashMap<u32, u32> = HashMap::new();
     let mut texel_of: Vec<u32> = Vec::new();
     let mut rows: Vec<Row> = Vec::new();
-    for seam in seams {
-        for t in samples(seam, width, height, POINTS_PER_TEXEL) {
+    // Two-sided points (side A positive, side B negative), then anchors.
+    let two_sided = seams.iter().flat_map(|seam| {
+        samples(seam, width, height, POINTS_PER_TEXEL).map(move |t| {
             let (uva, uvb) = seam.at(t);
-            let mut row = Row::default();
-            let sides = taps(uva, width, height)
-                .into_iter()
-                .map(|(t, w)| (t, w as f64))
-                .chain(
-                    taps(uvb, width, height)
-                        .into_iter()
-                        .map(|(t, w)| (t, -(w as f64))),
-                );
-            for (texel, w) in sides {
-                if w == 0.0 {
-                    continue;
-                }
-                let (list, id) = if fixed(texel) {
-                    (&mut row.fixed, texel)
-                } else {
-                    let next = texel_of.len() as u32;
-                    let u = *unknown_of.entry(texel).or_insert_with(|| {
-                        texel_of.push(texel);
-                        next
-                    });
-                    (&mut row.free, u)
-                };
-                match list.iter_mut().find(|e| e.0 == id) {
-                    Some(e) => e.1 += w,
-                    None => list.push((id, w)),
-                }
+            (uva, Some(uvb), None)
+        })
+    });
+    let one_sided = anchors
+        .iter()
+        .enumerate()
+        .map(|(k, a)| (a.uv, None, Some(k)));
+    for (uva, uvb, anchor) in two_sided.chain(one_sided) {
+        let mut row = Row {
+            anchor,
+            ..Row::default()
+        };
+        let a = taps(uva, width, height)
+            .into_iter()
+            .map(|(t, w)| (t, w as f64));
+        let b = uvb
+            .map(|uv| taps(uv, width, height))
+            .into_iter()
+            .flatten()
+            .map(|(t, w)| (t, -(w as f64)));
+        for (texel, w) in a.chain(b) {
+            if w == 0.0 {
+                continue;
             }
-            row.free.retain(|e| e.1.abs() > 1e-12);
-            if !row.free.is_empty() {
-                rows.push(row);
+            let (list, id) = if fixed(texel) {
+                (&mut row.fixed, texel)
+            } else {
+                let next = texel_of.len() as u32;
+                let u = *unknown_of.entry(texel).or_insert_with(|| {
+                    texel_of.push(texel);
+                    next
+                });
+                (&mut row.free, u)
+            };
+            match list.iter_mut().find(|e| e.0 == id) {
+                Some(e) => e.1 += w,
+                None => list.push((id, w)),
             }
+        }
+        row.free.retain(|e| e.1.abs() > 1e-12);
+        if !row.free.is_empty() {
+            rows.push(row);
         }
     }
     let n = texel_of.len();
@@ -184,6 +209,11 @@ pub fn stitch(
                         baked(t, &mut value);
                         for (k, v) in k.iter_mut().zip(&value) {
                             *k += w * *v as f64;
+                        }
+                    }
+                    if let Some(a) = rows[r].anchor {
+                        for (k, v) in k.iter_mut().zip(&anchors[a].target) {
+                            *k -= *v as f64;
                         }
                     }
                     (free, k)
@@ -364,6 +394,7 @@ mod tests {
         assert!(jump(&values).ao_mean > 0.08);
         let (texels, new, stats) = stitch(
             &[seam],
+            &[],
             w,
             h,
             1,
@@ -385,6 +416,61 @@ mod tests {
             let x = t % w;
             if (x as i32 - 4).abs() > 1 && (x as i32 - 12).abs() > 1 {
                 assert_eq!(values[t as usize], before[t as usize], "texel {t}");
+            }
+        }
+    }
+
+    #[test]
+    fn an_anchored_side_meets_its_target() {
+        // The left chart's edge at u = 4/16 must read 0.3 wherever the
+        // page holds 0.6; only texels in the lookups' footprints move.
+        let (w, h) = (16u32, 16u32);
+        let mut values = vec![0.6f32; (w * h) as usize];
+        let anchors: Vec<Anchor> = (0..24)
+            .map(|i| Anchor {
+                uv: [4.0 / 16.0, (2.0 + 12.0 * (i as f32 + 0.5) / 24.0) / 16.0],
+                target: vec![0.3],
+            })
+            .collect();
+        let (texels, new, stats) = stitch(
+            &[],
+            &anchors,
+            w,
+            h,
+            1,
+            |t| t % w < 3,
+            |t, out| out[0] = values[t as usize],
+        );
+        assert!(stats.converged && stats.constraints == 24, "{stats:?}");
+        for (t, v) in texels.iter().zip(new) {
+            values[*t as usize] = v;
+        }
+        let lookup = |uv: [f32; 2]| {
+            super::super::metric::taps(uv, w, h)
+                .iter()
+                .map(|&(t, wt)| wt * values[t as usize])
+                .sum::<f32>()
+        };
+        // Away from the strip's ends every row holds two free texels (x = 3,
+        // 4, tap weights 1/2 each) under two anchors, all moving by one d:
+        // minimise 2 d^2 + 2 lambda^2 (0.3 + d)^2, so the lookup reads
+        // 0.3 + 0.3 * 2 / (2 + 2 lambda^2) = 0.3115.
+        let l2 = SEAM_WEIGHT * SEAM_WEIGHT;
+        let expected = 0.3 + 0.3 * 2.0 / (2.0 + 2.0 * l2) as f32;
+        for a in &anchors[6..18] {
+            assert!(
+                (lookup(a.uv) - expected).abs() < 2e-3,
+                "{} against {expected}",
+                lookup(a.uv)
+            );
+        }
+        for a in &anchors {
+            assert!((lookup(a.uv) - 0.3).abs() < 0.05, "{}", lookup(a.uv));
+        }
+        // Fixed texels (x < 3) and texels beyond the footprints keep 0.6.
+        for t in 0..w * h {
+            if t % w < 3 || t % w > 5 {
+                assert_eq!(values[t as usize], 0.6, "texel {t}");
             }
         }
     }

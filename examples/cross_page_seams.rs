@@ -1,0 +1,83 @@
+//! The jump at seams whose two sides lie on different atlas pages, as a
+//! viewer sees it: each side's bilinear AO lookup on its own page's float
+//! lightmap (as encoded), at 3 points per texel, with `--seams off` and
+//! with stitching (both sides pulled to the shared target).
+//!
+//!     cargo run --release --example cross_page_seams -- SCENE.glb [DENSITY 28] [PAGE 1024]
+
+use aobake::atlas::AtlasSize;
+use aobake::pipeline::{bake_pages, prepare_level};
+use aobake::seams::SMOOTH_DEGREES;
+use aobake::seams::anchor::point_count;
+use aobake::seams::find::cross_page_seams;
+use aobake::seams::metric::taps;
+use aobake::settings::{SeamMode, Settings};
+use aobake::stage::StageTimer;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let path = args.get(1).expect("SCENE.glb");
+    let arg = |i: usize, d: f64| args.get(i).map_or(d, |a| a.parse().expect("a number"));
+    let (density, page) = (arg(2, 28.0), arg(3, 1024.0) as u32);
+    let scene = aobake::gltf::load(std::path::Path::new(path)).expect("load");
+    println!("| seams | cross-page seams | points | AO jump mean | p95 | over 8/255 | seconds |");
+    println!("|---|---|---|---|---|---|---|");
+    for mode in [SeamMode::Off, SeamMode::Stitch] {
+        let s = Settings {
+            size: AtlasSize::TexelDensity {
+                density,
+                page_size: page,
+            },
+            seams: mode,
+            progress: false,
+            ..Settings::default()
+        };
+        let mut timer = StageTimer::new();
+        let level = prepare_level(&scene, &s, &mut timer).expect("prepare");
+        let pages: Vec<u32> = (0..level.page_count()).collect();
+        let mut ao: Vec<(u32, u32, Vec<f32>)> = vec![(0, 0, Vec::new()); pages.len()];
+        bake_pages(&scene, &level, &pages, &s, &mut timer, &mut |p, _, out| {
+            let lm = out.lightmap;
+            ao[p.page as usize] = (lm.width, lm.height, lm.ao);
+        })
+        .expect("bake");
+        let seams = cross_page_seams(&level.geometry.receivers, &level.atlas, SMOOTH_DEGREES);
+        let mut jumps = Vec::new();
+        for seam in &seams {
+            let n = point_count(seam, &level.atlas.pages);
+            for i in 0..n {
+                let t = (i as f32 + 0.5) / n as f32;
+                let side = |k: usize| {
+                    let (w, h, img) = &ao[seam.page[k] as usize];
+                    let uv = seam.uv[k];
+                    let at = [
+                        uv[0][0] + (uv[1][0] - uv[0][0]) * t,
+                        uv[0][1] + (uv[1][1] - uv[0][1]) * t,
+                    ];
+                    taps(at, *w, *h)
+                        .iter()
+                        .map(|&(x, wt)| wt * img[x as usize])
+                        .sum::<f32>()
+                };
+                jumps.push((side(0) - side(1)).abs() as f64);
+            }
+        }
+        jumps.sort_by(f64::total_cmp);
+        let n = jumps.len().max(1) as f64;
+        let mean = jumps.iter().sum::<f64>() / n;
+        let p95 = jumps.get((0.95 * n) as usize).copied().unwrap_or(0.0);
+        let over = jumps.iter().filter(|&&j| j > 8.0 / 255.0).count() as f64 / n;
+        let seconds: f64 = timer
+            .into_merged_stages()
+            .iter()
+            .filter(|st| st.stage == "seams")
+            .map(|st| st.seconds)
+            .sum();
+        println!(
+            "| {mode:?} | {} | {} | {mean:.4} | {p95:.4} | {:.1}% | {seconds:.2} |",
+            seams.len(),
+            jumps.len(),
+            100.0 * over
+        );
+    }
+}
