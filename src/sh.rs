@@ -22,7 +22,7 @@ pub const BAND: [usize; SH_COUNT] = [0, 1, 1, 1, 2, 2, 2, 2, 2];
 /// The basis's normalisations: Y_0 = K0, Y_1 = K1 (y, z, x), Y_2 = K2_PRODUCT
 /// (xy, yz, xz), K2_ZZ (3 z^2 - 1) and K2_DIFFERENCE (x^2 - y^2). Kept in
 /// f64 for [`below_plane`], which integrates the same polynomials.
-const K0: f64 = 0.282_094_8;
+pub const K0: f64 = 0.282_094_8;
 const K1: f64 = 0.488_602_5;
 const K2_PRODUCT: f64 = 1.092_548_4;
 const K2_ZZ: f64 = 0.315_391_57;

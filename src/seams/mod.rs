@@ -109,6 +109,10 @@ pub fn stitch_page(
         let (t, at) = (t as usize, &values[k * channels..(k + 1) * channels]);
         ao[t] = at[0].clamp(0.0, 1.0);
         sh[t].copy_from_slice(&at[1..1 + SH_COUNT]);
+        // c0 = Y0 AO holds for every baked and target value, so for the
+        // solve's too; the clamp keeps it (a white environment relights
+        // as the AO). One-sided anchors overshoot [0, 1] more often.
+        sh[t][0] += crate::sh::K0 as f32 * (ao[t] - at[0]);
         if let Some(v) = visibility.as_deref_mut() {
             v[t].copy_from_slice(&at[1 + SH_COUNT..]);
         }
