@@ -8,9 +8,8 @@
 use aobake::atlas::AtlasSize;
 use aobake::pipeline::{bake_pages, prepare_level};
 use aobake::seams::SMOOTH_DEGREES;
-use aobake::seams::anchor::point_count;
+use aobake::seams::anchor::cross_page_jumps;
 use aobake::seams::find::cross_page_seams;
-use aobake::seams::metric::taps;
 use aobake::settings::{SeamMode, Settings};
 use aobake::stage::StageTimer;
 
@@ -42,26 +41,10 @@ fn main() {
         })
         .expect("bake");
         let seams = cross_page_seams(&level.geometry.receivers, &level.atlas, SMOOTH_DEGREES);
-        let mut jumps = Vec::new();
-        for seam in &seams {
-            let n = point_count(seam, &level.atlas.pages);
-            for i in 0..n {
-                let t = (i as f32 + 0.5) / n as f32;
-                let side = |k: usize| {
-                    let (w, h, img) = &ao[seam.page[k] as usize];
-                    let uv = seam.uv[k];
-                    let at = [
-                        uv[0][0] + (uv[1][0] - uv[0][0]) * t,
-                        uv[0][1] + (uv[1][1] - uv[0][1]) * t,
-                    ];
-                    taps(at, *w, *h)
-                        .iter()
-                        .map(|&(x, wt)| wt * img[x as usize])
-                        .sum::<f32>()
-                };
-                jumps.push((side(0) - side(1)).abs() as f64);
-            }
-        }
+        let mut jumps = cross_page_jumps(&seams, &level.atlas.pages, |p| {
+            let (w, h, img) = &ao[p as usize];
+            (*w, *h, img.as_slice())
+        });
         jumps.sort_by(f64::total_cmp);
         let n = jumps.len().max(1) as f64;
         let mean = jumps.iter().sum::<f64>() / n;

@@ -51,29 +51,28 @@ pub fn gaunt() -> &'static [[[f32; VIS_COUNT]; SH_COUNT]; VIS_COUNT] {
     })
 }
 
+/// P_n(t) and its derivative, by the three-term recurrence.
+fn legendre(n: usize, t: f64) -> (f64, f64) {
+    let (mut p0, mut p1) = (1.0, t);
+    for k in 2..=n {
+        let p2 = ((2 * k - 1) as f64 * t * p1 - (k - 1) as f64 * p0) / k as f64;
+        p0 = p1;
+        p1 = p2;
+    }
+    (p1, n as f64 * (t * p1 - p0) / (t * t - 1.0))
+}
+
 /// Gauss-Legendre nodes and weights on [-1, 1] (Newton on P_n).
 fn gauss_legendre(n: usize) -> (Vec<f64>, Vec<f64>) {
     let (mut x, mut w) = (vec![0.0; n], vec![0.0; n]);
     for i in 0..n {
         let mut t = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
         for _ in 0..100 {
-            let (mut p0, mut p1) = (1.0, t);
-            for k in 2..=n {
-                let p2 = ((2 * k - 1) as f64 * t * p1 - (k - 1) as f64 * p0) / k as f64;
-                p0 = p1;
-                p1 = p2;
-            }
-            let dp = n as f64 * (t * p1 - p0) / (t * t - 1.0);
-            let step = p1 / dp;
+            let (p, dp) = legendre(n, t);
+            let step = p / dp;
             t -= step;
             if step.abs() < 1e-15 {
-                let (mut q0, mut q1) = (1.0, t);
-                for k in 2..=n {
-                    let q2 = ((2 * k - 1) as f64 * t * q1 - (k - 1) as f64 * q0) / k as f64;
-                    q0 = q1;
-                    q1 = q2;
-                }
-                let d = n as f64 * (t * q1 - q0) / (t * t - 1.0);
+                let (_, d) = legendre(n, t);
                 x[i] = t;
                 w[i] = 2.0 / ((1.0 - t * t) * d * d);
                 break;

@@ -383,9 +383,7 @@ fn the_kubernetes_indexed_job_commands_bake_and_merge() {
 /// Mean AO jump at seams whose sides lie on different pages, each side
 /// looked up bilinearly in its own page's float lightmap.
 fn cross_page_jump(scene: &aobake::gltf::Scene, seams: aobake::settings::SeamMode) -> (usize, f64) {
-    use aobake::seams::{
-        SMOOTH_DEGREES, anchor::point_count, find::cross_page_seams, metric::taps,
-    };
+    use aobake::seams::{SMOOTH_DEGREES, anchor::cross_page_jumps, find::cross_page_seams};
     let s = aobake::Settings {
         size: aobake::atlas::AtlasSize::TexelDensity {
             density: 3.0,
@@ -408,28 +406,12 @@ fn cross_page_jump(scene: &aobake::gltf::Scene, seams: aobake::settings::SeamMod
     })
     .unwrap();
     let cross = cross_page_seams(&level.geometry.receivers, &level.atlas, SMOOTH_DEGREES);
-    let (mut sum, mut n) = (0.0, 0usize);
-    for seam in &cross {
-        let points = point_count(seam, &level.atlas.pages);
-        for i in 0..points {
-            let t = (i as f32 + 0.5) / points as f32;
-            let side = |k: usize| -> f32 {
-                let (w, h, img) = &ao[seam.page[k] as usize];
-                let uv = seam.uv[k];
-                let at = [
-                    uv[0][0] + (uv[1][0] - uv[0][0]) * t,
-                    uv[0][1] + (uv[1][1] - uv[0][1]) * t,
-                ];
-                taps(at, *w, *h)
-                    .iter()
-                    .map(|&(x, wt)| wt * img[x as usize])
-                    .sum()
-            };
-            sum += (side(0) - side(1)).abs() as f64;
-            n += 1;
-        }
-    }
-    (cross.len(), sum / n.max(1) as f64)
+    let jumps = cross_page_jumps(&cross, &level.atlas.pages, |p| {
+        let (w, h, img) = &ao[p as usize];
+        (*w, *h, img.as_slice())
+    });
+    let mean = jumps.iter().sum::<f64>() / jumps.len().max(1) as f64;
+    (cross.len(), mean)
 }
 
 /// Seams across pages: both sides are stitched to the target they

@@ -356,35 +356,34 @@ fn crop_last_page(
     padding: u32,
 ) -> Vec<PageSize> {
     let last = count - 1;
-    let on_last = |m: &ChartedMesh| -> Vec<bool> {
-        let mut used = vec![false; m.uv.len()];
-        for (t, &p) in m.triangles.chunks_exact(3).zip(&m.triangle_page) {
-            if p == last {
-                for &v in t {
-                    used[v as usize] = true;
+    // Per mesh, its vertices on the last page.
+    let on_last: Vec<Vec<bool>> = meshes
+        .iter()
+        .map(|m| {
+            let mut used = vec![false; m.uv.len()];
+            for (t, &p) in m.triangles.chunks_exact(3).zip(&m.triangle_page) {
+                if p == last {
+                    for &v in t {
+                        used[v as usize] = true;
+                    }
                 }
             }
-        }
-        used
-    };
+            used
+        })
+        .collect();
     let (mut max_u, mut max_v) = (0.0f32, 0.0f32);
-    for m in meshes.iter() {
-        for (uv, used) in m.uv.iter().zip(on_last(m)) {
-            if used {
-                max_u = max_u.max(uv[0]);
-                max_v = max_v.max(uv[1]);
-            }
+    for (m, used) in meshes.iter().zip(&on_last) {
+        for (uv, _) in m.uv.iter().zip(used).filter(|(_, u)| **u) {
+            max_u = max_u.max(uv[0]);
+            max_v = max_v.max(uv[1]);
         }
     }
     let crop = |max: f32, edge: u32| ((max * edge as f32).ceil() as u32 + padding).clamp(1, edge);
     let (cw, ch) = (crop(max_u, w), crop(max_v, h));
-    for m in meshes.iter_mut() {
-        let used = on_last(m);
-        for (uv, used) in m.uv.iter_mut().zip(used) {
-            if used {
-                uv[0] = uv[0] * w as f32 / cw as f32;
-                uv[1] = uv[1] * h as f32 / ch as f32;
-            }
+    for (m, used) in meshes.iter_mut().zip(&on_last) {
+        for (uv, _) in m.uv.iter_mut().zip(used).filter(|(_, u)| **u) {
+            uv[0] = uv[0] * w as f32 / cw as f32;
+            uv[1] = uv[1] * h as f32 / ch as f32;
         }
     }
     let mut pages = vec![

@@ -23,4 +23,6 @@ pub mod uris;
 pub mod write;
 
 pub use container::Document;
-pub use scene::{Instance, MAX_TRIANGLES, PrimitiveGeometry, Scene, load, primitive_label};
+pub use scene::{
+    Instance, MAX_TRIANGLES, PrimitiveGeometry, Scene, load, load_with_bytes, primitive_label,
+};

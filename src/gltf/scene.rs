@@ -92,6 +92,14 @@ pub fn load(path: &Path) -> Result<Scene> {
     Scene::from_document(doc)
 }
 
+/// [`load`], also returning the file's bytes (read once), for callers
+/// that fingerprint the input they bake.
+pub fn load_with_bytes(path: &Path) -> Result<(Vec<u8>, Scene)> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let doc = container::parse(&bytes, crate::file::parent_dir(path))?;
+    Ok((bytes, Scene::from_document(doc)?))
+}
+
 fn node_local(node: &Value, what: &str) -> Result<DMat4> {
     let nums = |key: &str, n: usize| -> Result<Option<Vec<f64>>> {
         match node.get(key) {

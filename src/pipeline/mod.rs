@@ -263,28 +263,16 @@ pub fn level_report(
             }
         })
         .collect();
-    let mut adaptive: Option<(AdaptiveReport, usize)> = None;
-    let mut filter: Option<(FilterReport, usize)> = None;
-    for d in done {
-        if let Some(a) = &d.adaptive {
-            match &mut adaptive {
-                Some((acc, n)) => {
-                    acc.merge(*n, a, d.texels);
-                    *n += d.texels;
-                }
-                None => adaptive = Some((a.clone(), d.texels)),
-            }
-        }
-        if let Some(f) = &d.filter {
-            match &mut filter {
-                Some((acc, n)) => {
-                    acc.merge(*n, f, d.texels);
-                    *n += d.texels;
-                }
-                None => filter = Some((f.clone(), d.texels)),
-            }
-        }
-    }
+    let adaptive = merged(
+        done.iter()
+            .filter_map(|d| Some((d.adaptive.as_ref()?, d.texels))),
+        AdaptiveReport::merge,
+    );
+    let filter = merged(
+        done.iter()
+            .filter_map(|d| Some((d.filter.as_ref()?, d.texels))),
+        FilterReport::merge,
+    );
     let visibility_rays: Option<u64> = done.iter().map(|d| d.visibility_rays).sum();
     Report {
         input: String::new(),
@@ -303,8 +291,8 @@ pub fn level_report(
         rays_per_texel: if s.method == Method::Mc { s.rays } else { 0 },
         rays_cast: rays,
         rays_per_texel_total: rays as f64 / texels.max(1) as f64,
-        filter: filter.map(|f| f.0),
-        adaptive: adaptive.map(|a| a.0),
+        filter,
+        adaptive,
         visibility: visibility_rays.map(|v| VisibilityReport {
             order: s.visibility_order,
             primitives: level.visibility_meshes.iter().filter(|&&m| m).count(),
@@ -327,6 +315,25 @@ pub fn level_report(
         total_seconds: 0.0,
         warnings,
     }
+}
+
+/// Pages' figures (each with its texels) merged into one by `merge(acc,
+/// texels so far, next, its texels)`; `None` without any.
+fn merged<'a, T: Clone + 'a>(
+    parts: impl Iterator<Item = (&'a T, usize)>,
+    merge: impl Fn(&mut T, usize, &T, usize),
+) -> Option<T> {
+    let mut acc: Option<(T, usize)> = None;
+    for (part, n) in parts {
+        match &mut acc {
+            Some((a, total)) => {
+                merge(a, *total, part, n);
+                *total += n;
+            }
+            None => acc = Some((part.clone(), n)),
+        }
+    }
+    acc.map(|(a, _)| a)
 }
 
 /// Dilates, stitches and encodes a prepared page and builds the output GLB

@@ -15,6 +15,7 @@
 //! bit for bit, in one process or in two shards.
 
 use super::find::CrossSeam;
+use super::metric::taps;
 use super::solve::{Anchor, POINTS_PER_TEXEL};
 use crate::atlas::{PageSize, Receivers};
 use crate::bake::{BakeParams, mc, visibility};
@@ -77,15 +78,22 @@ pub fn anchors(
     seed: u64,
     with_visibility: bool,
 ) -> Vec<Anchor> {
-    let mine: Vec<&CrossSeam> = seams.iter().filter(|s| s.page.contains(&page)).collect();
+    // This page's seams, the side on it, and their knot counts.
+    let mine: Vec<(&CrossSeam, usize, usize)> = seams
+        .iter()
+        .filter(|s| s.page.contains(&page))
+        .map(|s| {
+            (
+                s,
+                if s.page[0] == page { 0 } else { 1 },
+                knot_count(s, pages),
+            )
+        })
+        .collect();
     // Every knot's receiver, seam by seam.
     let mut r = Receivers::default();
-    let mut first_knot = Vec::with_capacity(mine.len());
-    for seam in &mine {
-        let side = if seam.page[0] == page { 0 } else { 1 };
-        let n = knot_count(seam, pages);
+    for &(seam, side, n) in &mine {
         let footprint = seam.length / texels(seam, side, pages).max(1e-6);
-        first_knot.push(r.texel.len());
         for i in 0..n {
             let t = (i as f32 + 0.5) / n as f32;
             let normal = seam.normal[0]
@@ -120,10 +128,10 @@ pub fn anchors(
         v
     };
     let mut out = Vec::new();
-    for (seam, &k0) in mine.iter().zip(&first_knot) {
-        let side = if seam.page[0] == page { 0 } else { 1 };
-        let n = knot_count(seam, pages);
-        let raw: Vec<Vec<f32>> = (0..n).map(|i| value(k0 + i)).collect();
+    let mut k0 = 0;
+    for &(seam, side, n) in &mine {
+        let raw: Vec<Vec<f32>> = (k0..k0 + n).map(value).collect();
+        k0 += n;
         let knots: Vec<Vec<f32>> = (0..n)
             .map(|i| {
                 let (a, b) = (&raw[i.saturating_sub(1)], &raw[(i + 1).min(n - 1)]);
@@ -133,7 +141,6 @@ pub fn anchors(
             })
             .collect();
         let points = point_count(seam, pages);
-        let uv = seam.uv[side];
         for j in 0..points {
             let t = (j as f32 + 0.5) / points as f32;
             // Between the knots at (i + 0.5) / n, clamped at the ends.
@@ -147,13 +154,36 @@ pub fn anchors(
                 .map(|(a, b)| a + (b - a) * f)
                 .collect();
             out.push(Anchor {
-                uv: [
-                    uv[0][0] + (uv[1][0] - uv[0][0]) * t,
-                    uv[0][1] + (uv[1][1] - uv[0][1]) * t,
-                ],
+                uv: seam.at(side, t),
                 target,
             });
         }
     }
     out
+}
+
+/// The AO jump a viewer sees at every point of `seams` ([`point_count`]
+/// per seam): each side's bilinear lookup in its own page's image,
+/// `ao(page)` = (width, height, AO texels).
+pub fn cross_page_jumps<'a>(
+    seams: &[CrossSeam],
+    pages: &[PageSize],
+    ao: impl Fn(u32) -> (u32, u32, &'a [f32]),
+) -> Vec<f64> {
+    let mut jumps = Vec::new();
+    for seam in seams {
+        let n = point_count(seam, pages);
+        for i in 0..n {
+            let t = (i as f32 + 0.5) / n as f32;
+            let side = |k: usize| -> f32 {
+                let (w, h, img) = ao(seam.page[k]);
+                taps(seam.at(k, t), w, h)
+                    .iter()
+                    .map(|&(x, wt)| wt * img[x as usize])
+                    .sum()
+            };
+            jumps.push((side(0) - side(1)).abs() as f64);
+        }
+    }
+    jumps
 }

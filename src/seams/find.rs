@@ -79,6 +79,19 @@ pub struct CrossSeam {
     pub length: f32,
 }
 
+impl CrossSeam {
+    /// The UV of the point at `t` in [0, 1] along the edge on side
+    /// `side`, in that side's page.
+    #[inline]
+    pub fn at(&self, side: usize, t: f32) -> [f32; 2] {
+        let uv = &self.uv[side];
+        [
+            uv[0][0] + (uv[1][0] - uv[0][0]) * t,
+            uv[0][1] + (uv[1][1] - uv[0][1]) * t,
+        ]
+    }
+}
+
 /// Position key: bake-space coordinates on a 2^-24 grid (bake space spans
 /// about 1, so vertices that a file places at the same point share a key).
 fn key(p: [f32; 3]) -> [i64; 3] {

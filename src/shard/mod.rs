@@ -199,8 +199,7 @@ pub fn run_shard(
 ) -> Result<(PathBuf, Report)> {
     pipeline::check_output(input, output)?;
     let mut timer = StageTimer::new();
-    let bytes = std::fs::read(input).map_err(|e| Error::io(input, e))?;
-    let scene = gltf::load(input)?;
+    let (bytes, scene) = gltf::load_with_bytes(input)?;
     timer.lap("load");
     let level = pipeline::prepare_level(&scene, s, &mut timer)?;
     let costs: Vec<f64> = (level.atlas.page_areas().into_iter())
@@ -375,7 +374,7 @@ pub fn merge(output: &Path) -> Result<Merged> {
     }
     // The input as the shards saw it, and the same settings.
     let input = PathBuf::from(&reference.input);
-    let bytes = std::fs::read(&input).map_err(|e| Error::io(&input, e))?;
+    let (bytes, scene) = gltf::load_with_bytes(&input)?;
     let settings: Settings = serde_json::from_value(reference.settings.clone())
         .map_err(|e| refuse(&first_path, format!("unreadable settings ({e})")))?;
     let expected = identity(&bytes, &settings, count, page_count);
@@ -396,7 +395,6 @@ pub fn merge(output: &Path) -> Result<Merged> {
     }
     pipeline::check_output(&input, output)?;
     let mut timer = StageTimer::new();
-    let scene = gltf::load(&input)?;
     let level = pipeline::prepare_level(&scene, &settings, &mut timer)?;
     if level.page_count() != page_count {
         return Err(refuse(
