@@ -16,7 +16,6 @@
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-use aobake::pipeline;
 use aobake::stage::StageTimer;
 use std::time::Instant;
 
@@ -24,8 +23,9 @@ fn cached_reference(
     path: &std::path::Path,
     res: u32,
     refs: u32,
-) -> (aobake::pipeline::Prepared, Vec<f32>, Vec<[f32; 9]>) {
-    let (s, p) = common::prepare_for_reference(path, res, refs);
+) -> (common::OnePage, Vec<f32>, Vec<[f32; 9]>) {
+    let one = common::prepare_for_reference(path, res, refs);
+    let (s, p) = (&one.s, one.page());
     let name = path.file_stem().unwrap().to_string_lossy();
     let cache = std::env::temp_dir().join(format!(
         "aobake-ref-{name}-{res}-{refs}-{:016x}.bin",
@@ -43,9 +43,11 @@ fn cached_reference(
         let sh = (0..n)
             .map(|i| std::array::from_fn(|k| f[i * 10 + 1 + k]))
             .collect();
-        return (p, ao, sh);
+        drop(p);
+        return (one, ao, sh);
     }
-    let r = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+    let r = p
+        .bake(s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
         .expect("reference")
         .bake;
     let mut b = Vec::with_capacity(n * 40);
@@ -56,7 +58,8 @@ fn cached_reference(
         }
     }
     std::fs::write(&cache, b).ok();
-    (p, r.ao, r.sh)
+    drop(p);
+    (one, r.ao, r.sh)
 }
 
 fn main() {
@@ -68,10 +71,10 @@ fn main() {
         .get(4)
         .cloned()
         .unwrap_or("mc:64,mc:256,adaptive:64".into());
-    let (p, ref_ao, ref_sh) = cached_reference(path, res, refs);
-    let base = aobake::Settings {
+    let (one, ref_ao, ref_sh) = cached_reference(path, res, refs);
+    let p = one.page();
+    let base = aobake::BakeSettings {
         size: aobake::atlas::AtlasSize::Resolution(res),
-        progress: false,
         fill_inside: false,
         ..Default::default()
     };
@@ -95,7 +98,9 @@ fn main() {
             s.adaptive.pre_rays = v.parse().unwrap();
         }
         let t = Instant::now();
-        let out = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).unwrap();
+        let out = p
+            .bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+            .unwrap();
         let secs = t.elapsed().as_secs_f64();
         let rays: Vec<f64> = match &out.adaptive_stats {
             Some(st) => st.rays.iter().map(|&r| r as f64).collect(),

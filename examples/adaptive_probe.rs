@@ -9,13 +9,13 @@ use common::*;
 
 fn main() {
     let sc = floor_and_wall();
-    let raw = |s: aobake::Settings| bake_raw(&sc, s);
-    let reference = raw(aobake::Settings {
+    let raw = |s: aobake::BakeSettings| bake_raw(&sc, s);
+    let reference = raw(aobake::BakeSettings {
         seed: 11,
         ..settings(128, 2048, Some(1.0))
     });
     for (reach, mean) in [(0u32, 16u32), (0, 64), (8, 16), (8, 64)] {
-        let mut s = settings(128, aobake::settings::DEFAULT_RAYS, Some(1.0));
+        let mut s = settings(128, aobake::job::settings::DEFAULT_RAYS, Some(1.0));
         s.method = aobake::Method::Adaptive;
         s.adaptive.max_reach = reach;
         s.adaptive.mean_rays = mean;

@@ -15,10 +15,10 @@ use aobake::atlas::AtlasSize;
 use aobake::atlas::Receivers;
 use aobake::bake::ReceiverRays;
 use aobake::bake::sheared::ShearedOptions;
-use aobake::pipeline::{self, Baked};
+use aobake::job::Baked;
 use aobake::report::metrics::error_stats;
 use aobake::trace::Tracer;
-use aobake::{Method, Settings};
+use aobake::{BakeSettings, Method};
 use rayon::prelude::*;
 use std::io::Write;
 use std::path::Path;
@@ -112,12 +112,11 @@ fn main() {
     let resolution: u32 = flag("--resolution", "1024").parse().unwrap();
     let reference_rays: u32 = flag("--reference", "2048").parse().unwrap();
     let runs = flag("--runs", "mc:16,mc:64,mc:256,filtered");
-    let base = Settings {
+    let base = BakeSettings {
         size: AtlasSize::Resolution(resolution),
-        progress: false,
         ..Default::default()
     };
-    let mc = |rays, seed| Settings {
+    let mc = |rays, seed| BakeSettings {
         method: Method::Mc,
         rays,
         seed,
@@ -125,7 +124,7 @@ fn main() {
     };
     let path = Path::new(&scene);
 
-    let reference = pipeline::bake_file(path, &mc(reference_rays, 1)).expect("reference bake");
+    let reference = aobake::bake_file(path, &mc(reference_rays, 1)).expect("reference bake");
     let r = &reference.report;
     println!("scene: {scene}");
     println!(
@@ -178,17 +177,17 @@ fn main() {
                 if let Some(w) = parts.get(5) {
                     f.min_weight = w.parse().unwrap();
                 }
-                Settings {
+                BakeSettings {
                     method: Method::Sheared,
                     seed: 7,
-                    filter: f,
+                    sheared: f,
                     ..base.clone()
                 }
             }
             other => panic!("unknown run {other}"),
         };
         let t = Instant::now();
-        let b = pipeline::bake_file(path, &settings).expect("bake");
+        let b = aobake::bake_file(path, &settings).expect("bake");
         let total = t.elapsed().as_secs_f64();
         assert_eq!(
             b.receivers.texel, reference.receivers.texel,
@@ -211,7 +210,7 @@ fn main() {
             ao.bias,
             ao.p99,
             sh.rmse,
-            rep.filter.as_ref().map_or("-".into(), |f| format!(
+            rep.sheared.as_ref().map_or("-".into(), |f| format!(
                 "{:.1}% ({:.1}% contact, {:.1}% no hit)",
                 100.0 * f.cells_brute_forced,
                 100.0 * f.cells_brute_contact,
@@ -221,7 +220,7 @@ fn main() {
         if args.iter().any(|a| a == "--breakdown") {
             // What the texture shows: texels inside geometry hold their
             // nearest valid texel's value in both bakes.
-            let shown = |l: &aobake::encode::Lightmap| -> Vec<f32> {
+            let shown = |l: &aobake::lightmap::Lightmap| -> Vec<f32> {
                 b.receivers
                     .texel
                     .iter()
@@ -235,7 +234,7 @@ fn main() {
             );
         }
         if args.iter().any(|a| a == "--breakdown")
-            && let Some(fs) = &b.filter_stats
+            && let Some(fs) = &b.sheared_stats
         {
             breakdown(fs, &b.bake.ao, &reference.bake.ao);
             // Nearest occluder and max distance in texel footprints: the
@@ -270,7 +269,7 @@ fn main() {
 
 /// Where a filtered bake's AO error comes from: texels binned by their
 /// fraction of brute-forced cells, each bin's share of the squared error.
-fn breakdown(fs: &aobake::bake::sheared::FilterStats, ao: &[f32], reference: &[f32]) {
+fn breakdown(fs: &aobake::bake::sheared::ShearedStats, ao: &[f32], reference: &[f32]) {
     const BINS: usize = 5;
     let mut count = [0usize; BINS];
     let mut sq = [0f64; BINS];

@@ -11,7 +11,6 @@
 mod common;
 use aobake::Method;
 use aobake::bake::sheared::ShearedOptions;
-use aobake::pipeline;
 use aobake::stage::StageTimer;
 use common::*;
 
@@ -26,25 +25,31 @@ fn probe(
     let sc = scene(g);
     let mut s = settings(res, 2048, Some(d));
     s.fill_inside = false;
-    let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
-    let reference = pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+    let level =
+        aobake::job::Level::new(&sc, &s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+            .unwrap();
+    let p = level.page(0, &sc, &s, &mut StageTimer::new()).unwrap();
+    let reference = p
+        .bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
         .unwrap()
         .bake;
-    let space = &p.geometry.space;
+    let space = &p.level.geometry.space;
     let sel: Vec<usize> = (0..p.receivers.len())
         .filter(|&i| keep(space.to_world(p.receivers.position[i])))
         .collect();
     for &(k, r, c) in runs {
         let mut f = s.clone();
         f.method = Method::Sheared;
-        f.filter = ShearedOptions {
+        f.sheared = ShearedOptions {
             sparse_rays: k,
             gather_radius: r,
             cell_rays: c,
             ..ShearedOptions::default()
         };
-        let out = pipeline::bake_prepared(&p, &f, &mut StageTimer::new()).unwrap();
-        let st = out.filter_stats.unwrap();
+        let out = p
+            .bake(&f, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+            .unwrap();
+        let st = out.sheared_stats.unwrap();
         let (mut bias, mut sq, mut bf) = (0.0f64, 0.0f64, 0.0f64);
         for &i in &sel {
             let e = (out.bake.ao[i] - reference.ao[i]) as f64;
@@ -76,7 +81,8 @@ fn probe(
             let mut m = s.clone();
             m.rays = 64;
             m.seed = 7;
-            let b = pipeline::bake_prepared(&p, &m, &mut StageTimer::new())
+            let b = p
+                .bake(&m, &aobake::RunOptions::QUIET, &mut StageTimer::new())
                 .unwrap()
                 .bake;
             (sel.iter()
@@ -137,8 +143,11 @@ fn cells_main() {
     let sc = scene(&g);
     let mut s = settings(256, 64, Some(10.0));
     s.fill_inside = false;
-    let p = pipeline::prepare(&sc, &s, &mut StageTimer::new()).unwrap();
-    let space = &p.geometry.space;
+    let level =
+        aobake::job::Level::new(&sc, &s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+            .unwrap();
+    let p = level.page(0, &sc, &s, &mut StageTimer::new()).unwrap();
+    let space = &p.level.geometry.space;
     let world = |i: usize| space.to_world(p.receivers.position[i]);
     let k_env: u32 = std::env::var("K")
         .ok()
@@ -154,10 +163,10 @@ fn cells_main() {
         ..Default::default()
     };
     let params = aobake::bake::BakeParams {
-        max_distance: p.max_distance,
+        max_distance: p.level.max_distance,
         seed: 0,
     };
-    let samples = filter::sparse_pass(&p.receivers, &p.tracer, &fs, &params);
+    let samples = filter::sparse_pass(&p.receivers, &p.level.tracer, &fs, &params);
     // Average over receivers near (target_x, y in [-0.3, 0.3]).
     let rs: Vec<usize> = (0..p.receivers.len())
         .filter(|&i| {
@@ -170,7 +179,8 @@ fn cells_main() {
     let mut wsum = vec![0.0f64; CELL_COUNT];
     let mut nb = vec![0usize; CELL_COUNT];
     for &r in &rs {
-        let cells = filter::cell_estimates(&p.receivers, &samples, &p.tracer, &fs, &params, r);
+        let cells =
+            filter::cell_estimates(&p.receivers, &samples, &p.level.tracer, &fs, &params, r);
         let frame = Frame::from_normal(p.receivers.normal[r]);
         let geo = p.receivers.geo_normal[r];
         let origin =
@@ -189,7 +199,11 @@ fn cells_main() {
                 let d = frame
                     .to_world(cosine_hemisphere(in_cell(c, sobol_2d(q, 99 + c as u64))))
                     .normalize();
-                if !p.tracer.receiver_visible(origin, geo, d, p.max_distance) {
+                if !p
+                    .level
+                    .tracer
+                    .receiver_visible(origin, geo, d, p.level.max_distance)
+                {
                     occ += 1;
                 }
             }

@@ -6,11 +6,12 @@
 //!     cargo run --release --example cross_page_seams -- SCENE.glb [DENSITY 28] [PAGE 1024]
 
 use aobake::atlas::AtlasSize;
-use aobake::pipeline::{bake_pages, prepare_level};
-use aobake::seams::SMOOTH_DEGREES;
-use aobake::seams::anchor::cross_page_jumps;
-use aobake::seams::find::cross_page_seams;
-use aobake::settings::{SeamMode, Settings};
+use aobake::job::BakeSettings;
+use aobake::job::{Job, RunOptions};
+use aobake::lightmap::seams::SMOOTH_DEGREES;
+use aobake::lightmap::seams::SeamMode;
+use aobake::lightmap::seams::anchor::cross_page_jumps;
+use aobake::lightmap::seams::find::cross_page_seams;
 use aobake::stage::StageTimer;
 
 fn main() {
@@ -22,20 +23,20 @@ fn main() {
     println!("| seams | cross-page seams | points | AO jump mean | p95 | over 8/255 | seconds |");
     println!("|---|---|---|---|---|---|---|");
     for mode in [SeamMode::Off, SeamMode::Stitch] {
-        let s = Settings {
+        let s = BakeSettings {
             size: AtlasSize::TexelDensity {
                 density,
                 page_size: page,
             },
             seams: mode,
-            progress: false,
-            ..Settings::default()
+            ..BakeSettings::default()
         };
-        let mut timer = StageTimer::new();
-        let level = prepare_level(&scene, &s, &mut timer).expect("prepare");
+        let run = RunOptions::QUIET;
+        let mut job = Job::new(&scene, &s, &run, StageTimer::new());
+        let level = job.level().expect("prepare");
         let pages: Vec<u32> = (0..level.page_count()).collect();
         let mut ao: Vec<(u32, u32, Vec<f32>)> = vec![(0, 0, Vec::new()); pages.len()];
-        bake_pages(&scene, &level, &pages, &s, &mut timer, &mut |p, _, out| {
+        job.pages(&level, &pages, &mut |p, _, out| {
             let lm = out.lightmap;
             ao[p.page as usize] = (lm.width, lm.height, lm.ao);
         })
@@ -50,7 +51,8 @@ fn main() {
         let mean = jumps.iter().sum::<f64>() / n;
         let p95 = jumps.get((0.95 * n) as usize).copied().unwrap_or(0.0);
         let over = jumps.iter().filter(|&&j| j > 8.0 / 255.0).count() as f64 / n;
-        let seconds: f64 = timer
+        let seconds: f64 = job
+            .timer
             .into_merged_stages()
             .iter()
             .filter(|st| st.stage == "seams")

@@ -11,7 +11,6 @@
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-use aobake::pipeline;
 use aobake::stage::StageTimer;
 
 fn main() {
@@ -21,7 +20,8 @@ fn main() {
     let run = a.get(3).cloned().unwrap_or("filtered:8:4".into());
     let seeds: u64 = a.get(4).and_then(|v| v.parse().ok()).unwrap_or(6);
     let refs: u32 = a.get(5).and_then(|v| v.parse().ok()).unwrap_or(2048);
-    let (s, p, reference) = common::reference_bake(path, res, refs);
+    let (one, reference) = common::reference_bake(path, res, refs);
+    let (s, p) = (one.s.clone(), one.page());
     let budget = aobake::report::parse_budgets(&run).expect("RUN")[0];
     let mut f = budget.settings(&s, 0);
     let n = p.receivers.len();
@@ -30,13 +30,15 @@ fn main() {
     let mut brute = vec![0.0f64; n];
     for seed in 0..seeds {
         f.seed = 0x5eed_0000 + seed * 7919;
-        let out = pipeline::bake_prepared(&p, &f, &mut StageTimer::new()).unwrap();
+        let out = p
+            .bake(&f, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+            .unwrap();
         for i in 0..n {
             let e = (out.bake.ao[i] - reference.ao[i]) as f64;
             sum[i] += e;
             sum2[i] += e * e;
         }
-        if let Some(st) = &out.filter_stats {
+        if let Some(st) = &out.sheared_stats {
             for (b, f) in brute.iter_mut().zip(&st.brute_fraction) {
                 *b += *f as f64 / seeds as f64;
             }

@@ -3,9 +3,8 @@
 //!
 //!     cargo run --release --example inside_map -- SCENE.glb OUT.png [--resolution 512]
 
-use aobake::Settings;
+use aobake::BakeSettings;
 use aobake::atlas::AtlasSize;
-use aobake::pipeline;
 use aobake::stage::StageTimer;
 
 fn main() {
@@ -16,15 +15,25 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .map_or(512, |v| v.parse().unwrap());
     let scene = aobake::gltf::load(std::path::Path::new(&args[0])).expect("load");
-    let s = Settings {
+    let s = BakeSettings {
         size: AtlasSize::Resolution(resolution),
         method: aobake::Method::Mc,
         rays: 16,
-        progress: false,
         ..Default::default()
     };
-    let p = pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
-    let passes = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).expect("bake");
+    let level = aobake::job::Level::new(
+        &scene,
+        &s,
+        &aobake::RunOptions::QUIET,
+        &mut StageTimer::new(),
+    )
+    .expect("prepare");
+    let p = level
+        .page(0, &scene, &s, &mut StageTimer::new())
+        .expect("prepare");
+    let passes = p
+        .bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+        .expect("bake");
     let r = &p.receivers;
     let inside = passes.inside(&p);
     let mut img = vec![0u8; (r.width * r.height * 3) as usize];

@@ -13,9 +13,9 @@
 
 use aobake::atlas::AtlasSize;
 use aobake::bake::{BakeParams, mc};
-use aobake::pipeline::{bake_pages, prepare_level};
-use aobake::seams::interior;
-use aobake::settings::Settings;
+use aobake::job::settings::BakeSettings;
+use aobake::job::{Job, RunOptions};
+use aobake::lightmap::seams::interior;
 use aobake::stage::StageTimer;
 
 fn main() {
@@ -30,53 +30,46 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|");
     for page_size in [4096, page] {
-        let s = Settings {
+        let s = BakeSettings {
             size: AtlasSize::TexelDensity { density, page_size },
-            progress: false,
-            ..Settings::default()
+            ..BakeSettings::default()
         };
-        let mut timer = StageTimer::new();
-        let level = prepare_level(&scene, &s, &mut timer).expect("prepare");
+        let run = RunOptions::QUIET;
+        let mut job = Job::new(&scene, &s, &run, StageTimer::new());
+        let level = job.level().expect("prepare");
         let pages: Vec<u32> = (0..level.page_count()).collect();
         // (sum AO^2, sum SH^2 / 9, n) over all compared texels, then interior.
         let mut sums = [[0.0f64; 3]; 2];
-        bake_pages(
-            &scene,
-            &level,
-            &pages,
-            &s,
-            &mut timer,
-            &mut |p, passes, out| {
-                let inside = passes.inside(&p).to_vec();
-                let pick: Vec<u32> = (0..p.receivers.len() as u32)
-                    .step_by(stride)
-                    .filter(|&r| !inside.get(r as usize).copied().unwrap_or(false))
-                    .collect();
-                let sub = p.receivers.permuted(&pick);
-                let params = BakeParams {
-                    max_distance: p.max_distance,
-                    seed: 0x5eed_0000 + p.page as u64,
-                };
-                let reference = mc::bake(&sub, &p.tracer, ref_rays, &params, &|_| {});
-                let lm = &out.lightmap;
-                for (k, &t) in sub.texel.iter().enumerate() {
-                    let t = t as usize;
-                    let ao = (lm.ao[t] - reference.ao[k]) as f64;
-                    let sh: f64 = (0..9)
-                        .map(|i| ((lm.sh[t][i] - reference.sh[k][i]) as f64).powi(2))
-                        .sum::<f64>()
-                        / 9.0;
-                    let classes = [true, interior(&lm.covered, lm.width, lm.height, t as u32)];
-                    for (c, &inn) in classes.iter().enumerate() {
-                        if inn {
-                            sums[c][0] += ao * ao;
-                            sums[c][1] += sh;
-                            sums[c][2] += 1.0;
-                        }
+        job.pages(&level, &pages, &mut |p, passes, out| {
+            let inside = passes.inside(&p).to_vec();
+            let pick: Vec<u32> = (0..p.receivers.len() as u32)
+                .step_by(stride)
+                .filter(|&r| !inside.get(r as usize).copied().unwrap_or(false))
+                .collect();
+            let sub = p.receivers.permuted(&pick);
+            let params = BakeParams {
+                max_distance: p.level.max_distance,
+                seed: 0x5eed_0000 + p.page as u64,
+            };
+            let reference = mc::bake(&sub, &p.level.tracer, ref_rays, &params, &|_| {});
+            let lm = &out.lightmap;
+            for (k, &t) in sub.texel.iter().enumerate() {
+                let t = t as usize;
+                let ao = (lm.ao[t] - reference.ao[k]) as f64;
+                let sh: f64 = (0..9)
+                    .map(|i| ((lm.sh[t][i] - reference.sh[k][i]) as f64).powi(2))
+                    .sum::<f64>()
+                    / 9.0;
+                let classes = [true, interior(&lm.covered, lm.width, lm.height, t as u32)];
+                for (c, &inn) in classes.iter().enumerate() {
+                    if inn {
+                        sums[c][0] += ao * ao;
+                        sums[c][1] += sh;
+                        sums[c][2] += 1.0;
                     }
                 }
-            },
-        )
+            }
+        })
         .expect("bake");
         let rmse = |c: usize, i: usize| (sums[c][i] / sums[c][2].max(1.0)).sqrt();
         println!(

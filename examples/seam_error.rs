@@ -10,10 +10,9 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use aobake::pipeline;
-use aobake::settings::SeamMode;
+use aobake::lightmap::seams::SeamMode;
 use aobake::stage::StageTimer;
-use aobake::{Method, Settings};
+use aobake::{BakeSettings, Method};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -21,32 +20,44 @@ fn main() {
     let res: u32 = args.get(1).map_or(1024, |v| v.parse().unwrap());
     let refs: u32 = args.get(2).map_or(512, |v| v.parse().unwrap());
     let scene = aobake::gltf::load(&path).expect("load");
-    let base = Settings {
+    let base = BakeSettings {
         size: aobake::atlas::AtlasSize::Resolution(res),
-        progress: false,
-        ..Settings::default()
+        ..BakeSettings::default()
     };
-    let p = pipeline::prepare(&scene, &base, &mut StageTimer::new()).expect("prepare");
-    let passes = pipeline::bake_prepared(&p, &base, &mut StageTimer::new()).expect("bake");
+    let level = aobake::job::Level::new(
+        &scene,
+        &base,
+        &aobake::RunOptions::QUIET,
+        &mut StageTimer::new(),
+    )
+    .expect("prepare");
+    let p = level
+        .page(0, &scene, &base, &mut StageTimer::new())
+        .expect("prepare");
+    let passes = p
+        .bake(&base, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+        .expect("bake");
     let reference = {
-        let s = Settings {
+        let s = BakeSettings {
             method: Method::Mc,
             rays: refs,
             ..base.clone()
         };
-        pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+        p.bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
             .expect("reference")
             .bake
     };
     let inside = passes.inside(&p).to_vec();
     let mut outs = Vec::new();
     for seams in [SeamMode::Off, SeamMode::Stitch] {
-        let s = Settings {
+        let s = BakeSettings {
             seams,
             ..base.clone()
         };
         let mut timer = StageTimer::new();
-        let out = pipeline::output(&scene, &p, &passes, &s, None, &mut timer).expect("output");
+        let out = p
+            .finish(&passes, &s, &aobake::RunOptions::QUIET, &mut timer)
+            .expect("output");
         outs.push(out);
     }
     let rc = &p.receivers;
@@ -81,8 +92,9 @@ fn main() {
             }
             ((ao / n.max(1) as f64).sqrt(), (sh / n.max(1) as f64).sqrt())
         };
-        let interior =
-            |r: usize| aobake::seams::interior(&lm.covered, lm.width, lm.height, rc.texel[r]);
+        let interior = |r: usize| {
+            aobake::lightmap::seams::interior(&lm.covered, lm.width, lm.height, rc.texel[r])
+        };
         let (i_ao, i_sh) = rmse(&interior);
         let (all_ao, all_sh) = rmse(&|_| true);
         let (m_ao, m_sh) = rmse(&|r| moved[r]);

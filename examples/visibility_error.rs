@@ -21,14 +21,14 @@
 //! Prints mean |error|, p95 |error| and mean error (bias) per tilt, and
 //! the bake's stage times.
 
-use aobake::pipeline;
+use aobake::bits::mix64;
+use aobake::job::settings::VisibilityMode;
 use aobake::relight::{Environment, anchored_diffuse};
-use aobake::sample::{Frame, mix64, receiver_seed, sobol_2d, uniform_hemisphere};
-use aobake::settings::VisibilityMode;
+use aobake::sample::{Frame, receiver_seed, sobol_2d, uniform_hemisphere};
 use aobake::sh::{self, SH_COUNT, VIS_COUNT};
 use aobake::stage::StageTimer;
 use aobake::trace::offset_origin;
-use aobake::{Method, Settings};
+use aobake::{BakeSettings, Method};
 use glam::{Quat, Vec3};
 use rayon::prelude::*;
 
@@ -100,19 +100,24 @@ fn main() {
     let ref_rays: u32 = arg(6, "4096").parse().unwrap();
 
     let scene = aobake::gltf::load(&path).expect("load");
-    let s = Settings {
+    let s = BakeSettings {
         size: aobake::atlas::AtlasSize::Resolution(res),
         method,
         visibility,
         visibility_order: order,
-        progress: false,
-        ..Settings::default()
+        ..BakeSettings::default()
     };
     s.validate().expect("settings");
     let mut timer = StageTimer::new();
-    let p = pipeline::prepare(&scene, &s, &mut timer).expect("prepare");
-    let passes = pipeline::bake_prepared(&p, &s, &mut timer).expect("bake");
-    let out = pipeline::output(&scene, &p, &passes, &s, None, &mut timer).expect("output");
+    let level = aobake::job::Level::new(&scene, &s, &aobake::RunOptions::QUIET, &mut timer)
+        .expect("prepare");
+    let p = level.page(0, &scene, &s, &mut timer).expect("prepare");
+    let passes = p
+        .bake(&s, &aobake::RunOptions::QUIET, &mut timer)
+        .expect("bake");
+    let out = p
+        .finish(&passes, &s, &aobake::RunOptions::QUIET, &mut timer)
+        .expect("output");
     for st in timer.stages() {
         eprint!("{} {:.2}s, ", st.stage, st.seconds);
     }
@@ -159,7 +164,9 @@ fn main() {
         .filter(|&r| inside.get(r).is_none_or(|&i| !i))
         .filter(|&r| match pick.as_str() {
             "centres" => rc.center_inside[r],
-            "interior" => aobake::seams::interior(&lm.covered, lm.width, lm.height, rc.texel[r]),
+            "interior" => {
+                aobake::lightmap::seams::interior(&lm.covered, lm.width, lm.height, rc.texel[r])
+            }
             _ => true,
         })
         .collect();
@@ -183,7 +190,12 @@ fn main() {
                     let d = frame
                         .to_world(uniform_hemisphere(sobol_2d(i, seed)))
                         .normalize();
-                    (d, p.tracer.receiver_visible(origin, geo, d, p.max_distance))
+                    (
+                        d,
+                        p.level
+                            .tracer
+                            .receiver_visible(origin, geo, d, p.level.max_distance),
+                    )
                 })
                 .collect()
         })

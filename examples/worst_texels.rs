@@ -7,7 +7,6 @@ mod common;
 
 use aobake::Method;
 use aobake::bake::sheared::ShearedOptions;
-use aobake::pipeline;
 use aobake::stage::StageTimer;
 
 fn main() {
@@ -15,27 +14,31 @@ fn main() {
     let path = std::path::Path::new(&a[1]);
     let arg = |i: usize, d: f64| a.get(i).and_then(|v| v.parse().ok()).unwrap_or(d);
     let (res, k, r, refs) = (arg(2, 512.0), arg(3, 8.0), arg(4, 4.0), arg(5, 256.0));
-    let (s, p, reference) = common::reference_bake(path, res as u32, refs as u32);
+    let (one, reference) = common::reference_bake(path, res as u32, refs as u32);
+    let (s, p) = (one.s.clone(), one.page());
     let mut f = s.clone();
     f.method = Method::Sheared;
-    f.filter = ShearedOptions {
+    f.sheared = ShearedOptions {
         sparse_rays: k as u32,
         gather_radius: r as f32,
         ..ShearedOptions::default()
     };
-    let out = pipeline::bake_prepared(&p, &f, &mut StageTimer::new()).unwrap();
-    let st = out.filter_stats.unwrap();
+    let out = p
+        .bake(&f, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+        .unwrap();
+    let st = out.sheared_stats.unwrap();
     let mut idx: Vec<usize> = (0..p.receivers.len()).collect();
     idx.sort_by(|&i, &j| {
         let e = |i: usize| (out.bake.ao[i] - reference.ao[i]).abs();
         e(j).total_cmp(&e(i))
     });
-    let space = &p.geometry.space;
+    let space = &p.level.geometry.space;
     let params = aobake::bake::BakeParams {
-        max_distance: p.max_distance,
+        max_distance: p.level.max_distance,
         seed: s.seed,
     };
-    let samples = aobake::bake::sheared::sparse_pass(&p.receivers, &p.tracer, &f.filter, &params);
+    let samples =
+        aobake::bake::sheared::sparse_pass(&p.receivers, &p.level.tracer, &f.sheared, &params);
     let kk = k as usize;
     for &i in idx.iter().take(12) {
         let fp = p.receivers.footprint[i];
@@ -65,8 +68,8 @@ fn main() {
             let cells = aobake::bake::sheared::cell_estimates(
                 &p.receivers,
                 &samples,
-                &p.tracer,
-                &f.filter,
+                &p.level.tracer,
+                &f.sheared,
                 &params,
                 i,
             );
@@ -81,7 +84,7 @@ fn main() {
         println!(
             "   own rays: {} (max distance {:.2e}, footprint {:.2e})",
             ts.join(", "),
-            p.max_distance,
+            p.level.max_distance,
             fp
         );
     }

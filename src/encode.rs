@@ -1,8 +1,7 @@
 //! Encode: per-receiver results into lightmap images.
 //!
-//! In: [`Receivers`], their [`Bake`], the dilation map. Out: a float
-//! [`Lightmap`] (AO and 9 SH channels for every texel) and its [`Encoded`]
-//! form per the output contract: AO as an 8-bit grey PNG, SH as three RGBA8
+//! In: a page's float [`Lightmap`] (from the lightmap stage,
+//! [`crate::lightmap`]). Out: its [`Encoded`] form per the output contract: AO as an 8-bit grey PNG, SH as three RGBA8
 //! PNGs with per-coefficient scale and offset (`c_i = shScale[i] * channel_i +
 //! shOffset[i]`; c0..c3 = T0.rgba, c4..c7 = T1.rgba, c8 = T2.r). Optionally a
 //! float EXR with channels `ao`, `sh0`..`sh8` (and `v0`..`v15` with the
@@ -10,26 +9,12 @@
 //! way into 4 RGBA8 PNGs (3 at order 2) with its own scale and offset.
 
 use crate::atlas::Receivers;
-use crate::atlas::dilate::NONE;
-use crate::bake::Bake;
 use crate::error::{Error, Result};
+use crate::lightmap::Lightmap;
 use crate::sh::{SH_COUNT, VIS_COUNT};
 use image::ImageEncoder;
 use rayon::prelude::*;
 use std::path::Path;
-
-/// Float lightmap images, row-major, row 0 at the top (glTF v = 0).
-#[derive(Clone, Debug)]
-pub struct Lightmap {
-    pub width: u32,
-    pub height: u32,
-    pub ao: Vec<f32>,
-    pub sh: Vec<[f32; SH_COUNT]>,
-    /// Whether each texel holds a receiver of its own (not dilated).
-    pub covered: Vec<bool>,
-    /// The visibility layer v_0..v_15, when baked.
-    pub visibility: Option<Vec<[f32; VIS_COUNT]>>,
-}
 
 /// The contract's encoded images.
 #[derive(Clone, Debug)]
@@ -48,49 +33,6 @@ pub struct EncodedVisibility {
     pub png: Vec<Vec<u8>>,
     pub scale: Vec<f32>,
     pub offset: Vec<f32>,
-}
-
-/// Spreads receiver results over the image through the dilation map.
-/// Fails if any value is NaN or infinite (it must never reach a texture).
-pub fn lightmap(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Lightmap> {
-    let layer = bake.visibility.as_ref().map(|l| &l.v);
-    if let Some(r) = (0..receivers.len()).find(|&r| {
-        !bake.ao[r].is_finite()
-            || !bake.sh[r].iter().all(|c| c.is_finite())
-            || layer.is_some_and(|v| !v[r].iter().all(|c| c.is_finite()))
-    }) {
-        let t = receivers.texel[r];
-        return Err(Error::Encode(format!(
-            "non-finite result at texel ({}, {})",
-            t % receivers.width,
-            t / receivers.width
-        )));
-    }
-    let mut covered = vec![false; fill.len()];
-    for &t in &receivers.texel {
-        covered[t as usize] = true;
-    }
-    let pick = |t: &u32| (*t != NONE).then_some(*t as usize);
-    Ok(Lightmap {
-        width: receivers.width,
-        height: receivers.height,
-        ao: fill
-            .par_iter()
-            .map(|t| pick(t).map_or(1.0, |r| bake.ao[r]))
-            .collect(),
-        sh: fill
-            .par_iter()
-            .map(|t| pick(t).map_or([0.0; SH_COUNT], |r| bake.sh[r]))
-            .collect(),
-        covered,
-        // A gutter texel far from any receiver: the open hemisphere of +z
-        // would be as arbitrary; zero, as for the SH.
-        visibility: layer.map(|v| {
-            fill.par_iter()
-                .map(|t| pick(t).map_or([0.0; VIS_COUNT], |r| v[r]))
-                .collect()
-        }),
-    })
 }
 
 /// An 8-bit PNG of `data` (rows top to bottom) in the given colour type.
@@ -266,7 +208,7 @@ pub fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
 /// Writes per-receiver diagnostic maps into `dir`, each as `NAME.png`
 /// ([`grey_map`]: values in [0, 1], white = 1, gutters black). Each method
 /// says what its maps show (for the filtered method,
-/// [`crate::bake::sheared::FilterStats::debug_maps`]).
+/// [`crate::bake::sheared::ShearedStats::debug_maps`]).
 pub fn write_grey_maps(dir: &Path, receivers: &Receivers, maps: &[(&str, Vec<f32>)]) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     for (name, values) in maps {

@@ -32,7 +32,7 @@ pub enum Error {
     #[error("limit exceeded: {0}")]
     Limit(String),
     /// A setting out of range, or one that contradicts another. `setting`
-    /// is the library's name for it (a field of `Settings` or
+    /// is the library's name for it (a field of `BakeSettings` or
     /// `ReportSettings`, such as `sparse_rays`); the
     /// command line shows its flag instead (`--sparse-rays`). `detail`
     /// follows the name, separator included (see [`Error::option`]).

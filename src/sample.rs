@@ -7,6 +7,7 @@
 //! becomes 64 hemisphere *cells* of equal projected solid angle (the paper's
 //! Section 5); [`cell_of`] inverts the map to find a direction's cell.
 
+use crate::bits::mix64;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_PI_4, PI};
 
@@ -158,14 +159,6 @@ impl Frame {
             w.dot(self.normal),
         )
     }
-}
-
-/// A 64-bit mix (SplitMix64 finalizer), for per-texel seeds.
-#[inline]
-pub fn mix64(mut x: u64) -> u64 {
-    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    x ^ (x >> 31)
 }
 
 /// The seed of one receiver's sample stream, independent of thread count.

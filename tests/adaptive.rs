@@ -4,11 +4,11 @@
 
 mod common;
 use aobake::Method;
+use aobake::job::settings::DEFAULT_RAYS;
 use aobake::report::metrics::error_stats;
-use aobake::settings::DEFAULT_RAYS;
 use common::*;
 
-fn adaptive(resolution: u32, mean_rays: u32, max_distance: Option<f64>) -> aobake::Settings {
+fn adaptive(resolution: u32, mean_rays: u32, max_distance: Option<f64>) -> aobake::BakeSettings {
     let mut s = settings(resolution, DEFAULT_RAYS, max_distance);
     s.method = Method::Adaptive;
     s.adaptive.mean_rays = mean_rays;
@@ -78,8 +78,8 @@ fn no_leak_across_a_thin_wall() {
 
 fn no_leak_with(
     sc: &aobake::gltf::Scene,
-    reference: &aobake::pipeline::Baked,
-    settings: &aobake::Settings,
+    reference: &aobake::job::Baked,
+    settings: &aobake::BakeSettings,
 ) {
     let a = aobake::bake_scene(sc, settings).unwrap();
     let s = &a.geometry.space;
@@ -106,8 +106,8 @@ fn no_leak_with(
 #[test]
 fn floor_beside_a_wall_beats_64_ray_monte_carlo_without_darkening_the_contact() {
     let sc = floor_and_wall();
-    let raw = |s: aobake::Settings| bake_raw(&sc, s);
-    let reference = raw(aobake::Settings {
+    let raw = |s: aobake::BakeSettings| bake_raw(&sc, s);
+    let reference = raw(aobake::BakeSettings {
         seed: 11,
         ..settings(128, 2048, Some(1.0))
     });
@@ -164,8 +164,8 @@ fn open_box(lo: [f32; 3], hi: [f32; 3]) -> Vec<MeshSpec> {
 
 /// Mean AO bias per class of floor texels against a reference.
 fn class_bias(
-    a: &aobake::pipeline::Baked,
-    reference: &aobake::pipeline::Baked,
+    a: &aobake::job::Baked,
+    reference: &aobake::job::Baked,
     class: impl Fn(glam::Vec3) -> Option<usize>,
     classes: usize,
 ) -> Vec<(f64, usize)> {
@@ -245,12 +245,12 @@ fn curtains_keep_their_contact_against_monte_carlo() {
     // 12072 charts: one page at 512 texels needs no padding.
     let reference = bake_raw(
         &sc,
-        aobake::Settings {
+        aobake::BakeSettings {
             padding: 0,
             ..settings(512, 128, None)
         },
     );
-    let mut s = aobake::Settings {
+    let mut s = aobake::BakeSettings {
         padding: 0,
         ..settings(512, DEFAULT_RAYS, None)
     };

@@ -28,7 +28,7 @@ fn reference(visible: impl Fn(Vec3) -> bool, f: impl Fn(Vec3) -> f64) -> f64 {
 }
 
 /// Receiver points whose position satisfies `pick`, with their results.
-fn picked(b: &aobake::pipeline::Baked, pick: impl Fn(Vec3) -> bool) -> Vec<(Vec3, f32, [f32; 9])> {
+fn picked(b: &aobake::job::Baked, pick: impl Fn(Vec3) -> bool) -> Vec<(Vec3, f32, [f32; 9])> {
     let s = &b.geometry.space;
     (0..b.receivers.len())
         .filter_map(|i| {

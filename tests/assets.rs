@@ -86,7 +86,7 @@ fn validate(path: &Path) -> Option<(u64, u64)> {
     ))
 }
 
-fn settings(resolution: u32) -> aobake::Settings {
+fn settings(resolution: u32) -> aobake::BakeSettings {
     common::settings(resolution, 4, None)
 }
 
@@ -95,8 +95,13 @@ fn bakes(name: &str, resolution: u32) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.glb");
     let input_bytes = std::fs::read(&path).unwrap();
-    let report =
-        aobake::run(&path, &out, &settings(resolution)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let report = aobake::bake(
+        &path,
+        &out,
+        &settings(resolution),
+        &aobake::RunOptions::QUIET,
+    )
+    .unwrap_or_else(|e| panic!("{name}: {e}"));
     assert!(report.texels > 0);
     // Seam stitching (the default) converged, and did not widen any jump.
     let seams = report.seams.as_ref().expect("seam figures");
@@ -172,7 +177,7 @@ fn refused(name: &str, reason: &str) {
     let Some(path) = asset(name) else { return };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.glb");
-    let err = aobake::run(&path, &out, &settings(256))
+    let err = aobake::bake(&path, &out, &settings(256), &aobake::RunOptions::QUIET)
         .expect_err("must be refused")
         .to_string();
     assert!(err.contains(reason), "{name}: {err}");

@@ -89,7 +89,7 @@ fn rebake_into_existing_uvs_reproduces_the_bake() {
     let n = 0; // the quads had no UVs: the generated set is TEXCOORD_0
     let again = aobake::bake_scene(
         &scene(&first.glb),
-        &aobake::Settings {
+        &aobake::BakeSettings {
             uv: aobake::UvSource::Existing(n),
             ..s.clone()
         },
@@ -128,7 +128,7 @@ fn overlapping_existing_uvs_are_refused() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cornell_box.glb");
     let err = aobake::bake_file(
         &path,
-        &aobake::Settings {
+        &aobake::BakeSettings {
             uv: aobake::UvSource::Existing(1),
             ..settings(64, 4, None)
         },
@@ -142,7 +142,7 @@ fn overlapping_existing_uvs_are_refused() {
     );
     let err = aobake::bake_file(
         &path,
-        &aobake::Settings {
+        &aobake::BakeSettings {
             uv: aobake::UvSource::Existing(5),
             ..settings(64, 4, None)
         },
@@ -159,12 +159,18 @@ fn output_equal_to_input_is_refused_and_input_untouched() {
     let p = dir.path().join("scene.glb");
     std::fs::write(&p, wall_scene()).unwrap();
     let before = std::fs::read(&p).unwrap();
-    let err = aobake::run(&p, &p, &settings(32, 4, None))
+    let err = aobake::bake(&p, &p, &settings(32, 4, None), &aobake::RunOptions::QUIET)
         .unwrap_err()
         .to_string();
     assert!(err.contains("is the input file"), "{err}");
     assert_eq!(std::fs::read(&p).unwrap(), before);
-    let err = aobake::run(&p, &dir.path().join("./scene.glb"), &settings(32, 4, None)).unwrap_err();
+    let err = aobake::bake(
+        &p,
+        &dir.path().join("./scene.glb"),
+        &settings(32, 4, None),
+        &aobake::RunOptions::QUIET,
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("is the input file"));
 }
 
@@ -174,7 +180,7 @@ fn failed_write_leaves_nothing_behind() {
     let p = dir.path().join("scene.glb");
     std::fs::write(&p, wall_scene()).unwrap();
     let out = dir.path().join("no_such_dir/out.glb");
-    let err = aobake::run(&p, &out, &settings(32, 4, None))
+    let err = aobake::bake(&p, &out, &settings(32, 4, None), &aobake::RunOptions::QUIET)
         .unwrap_err()
         .to_string();
     assert!(err.contains("no_such_dir"), "{err}");
@@ -236,7 +242,13 @@ fn gltf_with_external_files_bakes_into_another_directory() {
     std::fs::create_dir_all(&dst).unwrap();
     write_gltf(&src, true);
     let out = dst.join("baked.glb");
-    aobake::run(&src.join("scene.gltf"), &out, &settings(64, 8, Some(1.0))).unwrap();
+    aobake::bake(
+        &src.join("scene.gltf"),
+        &out,
+        &settings(64, 8, Some(1.0)),
+        &aobake::RunOptions::QUIET,
+    )
+    .unwrap();
     let (json, bin) = split(&std::fs::read(&out).unwrap());
     // The GLB's own buffer comes first; the external one moved to index 1
     // and its URI now resolves from the output's directory.
@@ -256,9 +268,14 @@ fn missing_external_image_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     write_gltf(dir.path(), false);
     let out = dir.path().join("out.glb");
-    let err = aobake::run(&dir.path().join("scene.gltf"), &out, &settings(32, 4, None))
-        .unwrap_err()
-        .to_string();
+    let err = aobake::bake(
+        &dir.path().join("scene.gltf"),
+        &out,
+        &settings(32, 4, None),
+        &aobake::RunOptions::QUIET,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         err.contains("images[0]") && err.contains("tex ture.png"),
         "{err}"

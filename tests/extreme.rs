@@ -37,7 +37,7 @@ fn floor() -> MeshSpec {
 
 /// AO of the output lightmap at each floor receiver (up-facing, at z = 0)
 /// whose world position satisfies `pick`.
-fn floor_ao(b: &aobake::pipeline::Baked, pick: impl Fn(DVec3) -> bool) -> Vec<f32> {
+fn floor_ao(b: &aobake::job::Baked, pick: impl Fn(DVec3) -> bool) -> Vec<f32> {
     let space = b.geometry.space;
     let r = &b.receivers;
     (0..r.len())
@@ -84,7 +84,7 @@ fn floor_under_a_box_resting_on_it_is_not_black() {
     let far = floor_ao(&b, |p| p.x.abs().max(p.y.abs()) > 0.85);
     assert!(mean(&far) > 0.95, "{}", mean(&far));
     // --no-inside-fill: baked as they are, black under the box.
-    let s = aobake::Settings {
+    let s = aobake::BakeSettings {
         fill_inside: false,
         ..settings(128, 64, Some(0.5))
     };
@@ -116,8 +116,9 @@ fn the_adaptive_pre_pass_finds_the_validity_stages_inside_texels() {
     // closest-hit, as the adaptive pre-pass does: the pre-pass makes the
     // same test on the same rays (continuing it past its own rays when it
     // has fewer), so the adaptive method runs no validity stage.
-    use aobake::pipeline;
+    use aobake::job::Level;
     use aobake::stage::StageTimer;
+    let run = aobake::RunOptions::QUIET;
     let scenes = [
         glb(
             &[floor(), closed_box([-0.2, -0.2, 0.0], [0.2, 0.2, 0.4])],
@@ -129,21 +130,25 @@ fn the_adaptive_pre_pass_finds_the_validity_stages_inside_texels() {
         ),
     ];
     for g in &scenes {
-        let mc = aobake::Settings {
+        let mc = aobake::BakeSettings {
             seed: 7,
             ..settings(128, 64, Some(0.5))
         };
-        let p = pipeline::prepare(&scene(g), &mc, &mut StageTimer::new()).unwrap();
+        let sc = scene(g);
+        let level = Level::new(&sc, &mc, &run, &mut StageTimer::new()).unwrap();
+        let p = level.page(0, &sc, &mc, &mut StageTimer::new()).unwrap();
         let expected = p.inside.clone().unwrap();
         let count = expected.iter().filter(|&&x| x).count();
         assert!(count > 20 && count < expected.len() / 2, "{count}");
         for pre_rays in [4, 16, 32] {
-            let mut s = aobake::Settings {
+            let mut s = aobake::BakeSettings {
                 method: aobake::Method::Adaptive,
                 ..mc.clone()
             };
             s.adaptive.pre_rays = pre_rays;
-            let passes = pipeline::bake_prepared(&p, &s, &mut StageTimer::new()).unwrap();
+            let passes = p
+                .bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+                .unwrap();
             assert!(
                 passes.adaptive_stats.unwrap().inside == expected,
                 "{pre_rays} rays"
@@ -151,12 +156,13 @@ fn the_adaptive_pre_pass_finds_the_validity_stages_inside_texels() {
         }
         // Prepared for the adaptive method: no validity stage, the same
         // texels filled.
-        let s = aobake::Settings {
+        let s = aobake::BakeSettings {
             method: aobake::Method::Adaptive,
             ..mc.clone()
         };
         let mut timer = StageTimer::new();
-        let pa = pipeline::prepare(&scene(g), &s, &mut timer).unwrap();
+        let level = Level::new(&sc, &s, &run, &mut timer).unwrap();
+        let pa = level.page(0, &sc, &s, &mut timer).unwrap();
         assert!(pa.inside.is_none());
         assert!(timer.stages().iter().all(|st| st.stage != "validity"));
         let b = aobake::bake_scene(&scene(g), &s).unwrap();
@@ -210,7 +216,7 @@ fn grid(n: usize) -> MeshSpec {
     m
 }
 
-fn assert_sane(b: &aobake::pipeline::Baked) {
+fn assert_sane(b: &aobake::job::Baked) {
     assert!(b.bake.ao.iter().all(|a| (0.0..=1.0).contains(a)));
     assert!(b.bake.sh.iter().flatten().all(|c| c.is_finite()));
     assert!(b.lightmap.ao.iter().all(|a| a.is_finite()));
@@ -280,7 +286,7 @@ fn sliver_and_degenerate_triangles_bake_without_nan() {
     // The slivers under the roof are occluded.
     assert!(b.bake.ao.iter().any(|&a| a < 0.6));
     // And the filtered method on the same scene.
-    let s = aobake::Settings {
+    let s = aobake::BakeSettings {
         method: aobake::Method::Sheared,
         ..settings(128, 16, Some(1.0))
     };
@@ -348,7 +354,7 @@ fn zero_area_uv_triangles_in_an_existing_set_cover_nothing() {
     let uvs = [[0.5, 0.5], [0.5, 0.5], [1.0, 1.0], [0.0, 1.0]];
     add_texcoord1(&mut j, &mut bin, &uvs, &[0]);
     let g = aobake::gltf::container::glb_bytes(&j, &bin);
-    let s = aobake::Settings {
+    let s = aobake::BakeSettings {
         uv: aobake::UvSource::Existing(1),
         ..settings(64, 8, None)
     };

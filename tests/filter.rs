@@ -6,10 +6,14 @@ use aobake::{Method, sh};
 use common::*;
 use glam::Vec3;
 
-fn filtered(resolution: u32, max_distance: Option<f64>) -> aobake::Settings {
-    aobake::Settings {
+fn filtered(resolution: u32, max_distance: Option<f64>) -> aobake::BakeSettings {
+    aobake::BakeSettings {
         method: Method::Sheared,
-        ..settings(resolution, aobake::settings::DEFAULT_RAYS, max_distance)
+        ..settings(
+            resolution,
+            aobake::job::settings::DEFAULT_RAYS,
+            max_distance,
+        )
     }
 }
 
@@ -21,7 +25,7 @@ fn open_plane_is_exactly_open() {
     );
     let b = aobake::bake_scene(&scene(&g), &filtered(64, None)).unwrap();
     let want = sh::open_hemisphere(Vec3::Z);
-    let stats = b.filter_stats.as_ref().unwrap();
+    let stats = b.sheared_stats.as_ref().unwrap();
     assert_eq!(
         stats.receivers_open as usize,
         b.receivers.len(),
@@ -49,10 +53,10 @@ fn too_few_rays_on_an_open_plane_brute_force_every_cell_as_no_hit() {
         plain_nodes(1),
     );
     let mut s = filtered(32, None);
-    s.filter.sparse_rays = 1;
-    s.filter.gather_radius = 1.0;
+    s.sheared.sparse_rays = 1;
+    s.sheared.gather_radius = 1.0;
     let b = aobake::bake_scene(&scene(&g), &s).unwrap();
-    let stats = b.filter_stats.as_ref().unwrap();
+    let stats = b.sheared_stats.as_ref().unwrap();
     let cells = 64 * b.receivers.len() as u64;
     assert_eq!(stats.receivers_open, 0);
     assert_eq!(stats.cells_brute, cells);
@@ -220,17 +224,17 @@ fn floor_beside_a_wall_beats_64_ray_monte_carlo() {
     // must be unbiased within 0.005 and closer to the reference than an
     // independent 64-ray Monte Carlo bake is.
     let sc = floor_and_wall();
-    let bake = |s: aobake::Settings| bake_raw(&sc, s);
-    let reference = bake(aobake::Settings {
+    let bake = |s: aobake::BakeSettings| bake_raw(&sc, s);
+    let reference = bake(aobake::BakeSettings {
         seed: 11,
         ..settings(128, 1024, Some(1.0))
     });
     let mc = bake(settings(128, 64, Some(1.0)));
     let mut f = filtered(128, Some(1.0));
-    f.filter.sparse_rays = 8;
-    f.filter.gather_radius = 8.0;
+    f.sheared.sparse_rays = 8;
+    f.sheared.gather_radius = 8.0;
     let f = bake(f);
-    let stats = f.filter_stats.as_ref().unwrap();
+    let stats = f.sheared_stats.as_ref().unwrap();
     assert!(
         stats.cell_share(stats.cells_brute) < 0.2,
         "most cells filtered: {}",
@@ -245,7 +249,7 @@ fn floor_beside_a_wall_beats_64_ray_monte_carlo() {
         })
         .collect();
     assert!(sel.len() > 1000, "{}", sel.len());
-    let err = |b: &aobake::pipeline::Baked| {
+    let err = |b: &aobake::job::Baked| {
         let (mut bias, mut sq) = (0.0f64, 0.0f64);
         for &i in &sel {
             let e = (b.bake.ao[i] - reference.bake.ao[i]) as f64;
@@ -278,7 +282,7 @@ fn a_sheet_just_above_a_floor_lends_it_no_rays() {
     // be filtered with the sheet's open rays.
     let roof = quad([0.4, 0.0, 0.2], [0.0, 0.6, 0.0], [0.3, 0.0, 0.0], true);
     let sc = scene(&glb(&[floor, sheet, roof], plain_nodes(3)));
-    let bake = |s: aobake::Settings| {
+    let bake = |s: aobake::BakeSettings| {
         let mut s = s;
         s.fill_inside = false;
         aobake::bake_scene(&sc, &s).unwrap()
@@ -293,7 +297,7 @@ fn a_sheet_just_above_a_floor_lends_it_no_rays() {
         })
         .collect();
     assert!(under.len() > 100, "{}", under.len());
-    let mean = |b: &aobake::pipeline::Baked| {
+    let mean = |b: &aobake::job::Baked| {
         under.iter().map(|&i| b.bake.ao[i] as f64).sum::<f64>() / under.len() as f64
     };
     eprintln!("hidden floor: mc {} filtered {}", mean(&mc), mean(&f));
@@ -318,16 +322,16 @@ fn a_wall_top_edge_does_not_darken_the_floor() {
     // at the mid depth loses open rays from the edge's cells and biased this
     // band dark by 0.006 (now 0.0009).
     let sc = floor_and_wall();
-    let bake = |s: aobake::Settings| bake_raw(&sc, s);
-    let reference = bake(aobake::Settings {
+    let bake = |s: aobake::BakeSettings| bake_raw(&sc, s);
+    let reference = bake(aobake::BakeSettings {
         seed: 11,
         ..settings(192, 2048, Some(1.0))
     });
     let mut f = filtered(192, Some(1.0));
-    f.filter.gather_radius = 8.0;
-    f.filter.sparse_rays = 32;
+    f.sheared.gather_radius = 8.0;
+    f.sheared.sparse_rays = 32;
     let f = bake(f);
-    let stats = f.filter_stats.as_ref().unwrap();
+    let stats = f.sheared_stats.as_ref().unwrap();
     let brute = stats.cell_share(stats.cells_brute);
     assert!(brute < 0.1, "brute-forced {brute}");
     let s = &reference.geometry.space;
@@ -361,12 +365,12 @@ fn second_pass_continues_the_sparse_sequence() {
     let wall = quad([a, 0.0, 1.2], [0.0, 0.0, 1.2], [0.0, 1.2, 0.0], true);
     let sc = scene(&glb(&[recv, wall], plain_nodes(2)));
     let mut f = filtered(256, Some(d));
-    f.filter.sparse_rays = 8;
-    f.filter.min_weight = 1e9;
+    f.sheared.sparse_rays = 8;
+    f.sheared.min_weight = 1e9;
     let f = aobake::bake_scene(&sc, &f).unwrap();
     let mc = aobake::bake_scene(&sc, &settings(256, 128, Some(d))).unwrap();
     let s = &f.geometry.space;
-    let rmse = |b: &aobake::pipeline::Baked| {
+    let rmse = |b: &aobake::job::Baked| {
         let (mut sq, mut n) = (0.0f64, 0usize);
         for i in 0..b.receivers.len() {
             let p = s.to_world(b.receivers.position[i]);
@@ -384,7 +388,7 @@ fn second_pass_continues_the_sparse_sequence() {
     };
     let (f_rmse, mc_rmse) = (rmse(&f), rmse(&mc));
     eprintln!("all-brute filtered {f_rmse}, mc128 {mc_rmse}");
-    let stats = f.filter_stats.as_ref().unwrap();
+    let stats = f.sheared_stats.as_ref().unwrap();
     assert_eq!(stats.cells_filtered, 0);
     // Receivers that saw an occluder: 120 new rays each (128 less the 8
     // reused), fewer only for rays below the geometric horizon.

@@ -4,7 +4,7 @@
 mod common;
 
 use aobake::Method;
-use aobake::pipeline::{bake_prepared, prepare};
+use aobake::job::Level;
 use aobake::stage::StageTimer;
 
 #[test]
@@ -12,23 +12,29 @@ fn every_method_bakes_the_same_texels_in_world_and_texel_order() {
     // Single-sided walls: the inside test runs too.
     let scene = common::scene(&common::thin_wall_scene());
     for method in [Method::Mc, Method::Adaptive, Method::Sheared] {
-        let s = aobake::Settings {
+        let s = aobake::BakeSettings {
             method,
             ..common::settings(64, 32, None)
         };
-        let world = prepare(&scene, &s, &mut StageTimer::new()).unwrap();
+        let run = aobake::RunOptions::QUIET;
+        let level = Level::new(&scene, &s, &run, &mut StageTimer::new()).unwrap();
+        let world = level.page(0, &scene, &s, &mut StageTimer::new()).unwrap();
         let n = world.receivers.len();
         // The pipeline's order is not the texel order (or this proves nothing).
         assert!(world.receivers.texel.windows(2).any(|w| w[0] > w[1]));
-        let mut by_texel = prepare(&scene, &s, &mut StageTimer::new()).unwrap();
+        let mut by_texel = level.page(0, &scene, &s, &mut StageTimer::new()).unwrap();
         let mut order: Vec<u32> = (0..n as u32).collect();
         order.sort_by_key(|&i| by_texel.receivers.texel[i as usize]);
         by_texel.receivers = by_texel.receivers.permuted(&order);
         by_texel.inside = by_texel
             .inside
             .map(|v| order.iter().map(|&i| v[i as usize]).collect());
-        let a = bake_prepared(&world, &s, &mut StageTimer::new()).unwrap();
-        let b = bake_prepared(&by_texel, &s, &mut StageTimer::new()).unwrap();
+        let a = world
+            .bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+            .unwrap();
+        let b = by_texel
+            .bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
+            .unwrap();
         let mut inside = 0;
         for (k, &i) in order.iter().enumerate() {
             let i = i as usize;

@@ -382,26 +382,31 @@ fn the_kubernetes_indexed_job_commands_bake_and_merge() {
 
 /// Mean AO jump at seams whose sides lie on different pages, each side
 /// looked up bilinearly in its own page's float lightmap.
-fn cross_page_jump(scene: &aobake::gltf::Scene, seams: aobake::settings::SeamMode) -> (usize, f64) {
-    use aobake::seams::{SMOOTH_DEGREES, anchor::cross_page_jumps, find::cross_page_seams};
-    let s = aobake::Settings {
+fn cross_page_jump(
+    scene: &aobake::gltf::Scene,
+    seams: aobake::lightmap::seams::SeamMode,
+) -> (usize, f64) {
+    use aobake::lightmap::seams::{
+        SMOOTH_DEGREES, anchor::cross_page_jumps, find::cross_page_seams,
+    };
+    let s = aobake::BakeSettings {
         size: aobake::atlas::AtlasSize::TexelDensity {
             density: 3.0,
             page_size: 128,
         },
         seams,
-        progress: false,
         adaptive: aobake::bake::adaptive::AdaptiveOptions {
             quality: 32,
             ..Default::default()
         },
         ..Default::default()
     };
-    let mut timer = aobake::stage::StageTimer::new();
-    let level = aobake::pipeline::prepare_level(scene, &s, &mut timer).unwrap();
+    let run = aobake::RunOptions::QUIET;
+    let mut job = aobake::job::Job::new(scene, &s, &run, aobake::stage::StageTimer::new());
+    let level = job.level().unwrap();
     let pages: Vec<u32> = (0..level.page_count()).collect();
     let mut ao = vec![(0, 0, Vec::new()); pages.len()];
-    aobake::pipeline::bake_pages(scene, &level, &pages, &s, &mut timer, &mut |p, _, out| {
+    job.pages(&level, &pages, &mut |p, _, out| {
         ao[p.page as usize] = (out.lightmap.width, out.lightmap.height, out.lightmap.ao);
     })
     .unwrap();
@@ -421,8 +426,8 @@ fn seams_across_pages_are_stitched_to_a_shared_target() {
     let Some(scene) = common::shared_scene("sponza_dabrovic.glb") else {
         return;
     };
-    let (count, off) = cross_page_jump(&scene, aobake::settings::SeamMode::Off);
-    let (_, stitched) = cross_page_jump(&scene, aobake::settings::SeamMode::Stitch);
+    let (count, off) = cross_page_jump(&scene, aobake::lightmap::seams::SeamMode::Off);
+    let (_, stitched) = cross_page_jump(&scene, aobake::lightmap::seams::SeamMode::Stitch);
     eprintln!("{count} cross-page seams: AO jump mean {off:.4} -> {stitched:.4}");
     assert!(count > 100, "{count} cross-page seams");
     assert!(off > 0.05, "unstitched jump {off}");

@@ -172,7 +172,10 @@ fn cli_writes_every_file_and_refuses_bad_budgets() {
     assert!(!bad.status.success());
     let stderr = String::from_utf8(bad.stderr).unwrap();
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("--budgets: 'mc:0'"), "{stderr}");
+    assert!(
+        stderr.contains("for '--budgets <LIST>': 'mc:0'"),
+        "{stderr}"
+    );
     assert!(!dir.path().join("bad").exists());
 }
 

@@ -3,7 +3,7 @@
 //! bilinear with the glTF conventions), creases keep their jump.
 
 mod common;
-use aobake::settings::SeamMode;
+use aobake::lightmap::seams::SeamMode;
 use common::*;
 use serde_json::Value;
 
@@ -44,8 +44,8 @@ fn cylinder_on_floor() -> aobake::gltf::Scene {
     scene(&aobake::gltf::container::glb_bytes(&json, &bin))
 }
 
-fn bake(sc: &aobake::gltf::Scene, seams: SeamMode) -> aobake::pipeline::Baked {
-    let s = aobake::Settings {
+fn bake(sc: &aobake::gltf::Scene, seams: SeamMode) -> aobake::job::Baked {
+    let s = aobake::BakeSettings {
         uv: aobake::UvSource::Existing(1),
         size: aobake::atlas::AtlasSize::Resolution(128),
         seams,
@@ -144,7 +144,7 @@ fn a_box_keeps_its_creases() {
     let on = aobake::bake_scene(&sc, &s).unwrap();
     let off = aobake::bake_scene(
         &sc,
-        &aobake::Settings {
+        &aobake::BakeSettings {
             seams: SeamMode::Off,
             ..s.clone()
         },

@@ -37,7 +37,12 @@ fn viewer_relights_bakes_in_a_real_browser() {
         return;
     }
     let out = Command::new("node")
-        .args(["--test", "--test-reporter=tap", "test/viewer.test.mjs"])
+        .args([
+            "--test",
+            "--test-reporter=tap",
+            "test/viewer.test.mjs",
+            "test/builtin.test.mjs",
+        ])
         .current_dir(&viewer)
         .env("AOBAKE_BIN", env!("CARGO_BIN_EXE_aobake"))
         .env("CHROMIUM", &chromium)
@@ -53,4 +58,36 @@ fn viewer_relights_bakes_in_a_real_browser() {
         "viewer tests failed:\n{tap}\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// The three.js files built into the binary (`viewer/vendor/three`) are
+/// the npm package's pinned in `viewer/package.json`, byte for byte.
+#[test]
+fn the_vendored_three_js_is_the_pinned_package() {
+    let viewer = Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer");
+    let installed = viewer.join("node_modules/three");
+    if !installed.is_dir() {
+        let required = std::env::var_os("CI").is_some()
+            || std::env::var_os("AOBAKE_REQUIRE_BROWSER").is_some();
+        assert!(!required, "needs npm ci --prefix viewer");
+        eprintln!("note: skipped, npm ci --prefix viewer has not run");
+        return;
+    }
+    let pinned: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(viewer.join("package.json")).unwrap()).unwrap();
+    let version: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(installed.join("package.json")).unwrap()).unwrap();
+    assert_eq!(pinned["dependencies"]["three"], version["version"]);
+    let mut n = 0;
+    for (path, bytes) in aobake::view::embedded::FILES {
+        if let Some(rel) = path.strip_prefix("vendor/three/") {
+            let npm = std::fs::read(installed.join(rel)).unwrap();
+            assert!(
+                npm == *bytes,
+                "{path} differs from node_modules/three/{rel}"
+            );
+            n += 1;
+        }
+    }
+    assert!(n >= 6, "{n} vendored files");
 }

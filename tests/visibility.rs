@@ -4,9 +4,9 @@
 //! the file (fields, decoding, `auto`).
 
 mod common;
+use aobake::job::settings::VisibilityMode;
 use aobake::relight::{Environment, anchored_diffuse};
 use aobake::sample::{Frame, receiver_seed, sobol_2d, uniform_hemisphere};
-use aobake::settings::VisibilityMode;
 use aobake::sh::{self, VIS_COUNT};
 use aobake::trace::offset_origin;
 use common::*;
@@ -15,7 +15,7 @@ use serde_json::{Value, json};
 
 const PI: f64 = std::f64::consts::PI;
 
-fn with_layer(mut s: aobake::Settings, method: aobake::Method) -> aobake::Settings {
+fn with_layer(mut s: aobake::BakeSettings, method: aobake::Method) -> aobake::BakeSettings {
     s.method = method;
     s.visibility = VisibilityMode::All;
     if method == aobake::Method::Adaptive {
@@ -44,7 +44,7 @@ fn uniform_reference(visible: impl Fn(Vec3) -> bool, f: impl Fn(Vec3) -> f64) ->
 }
 
 /// The layer of receivers on the plane z = 0 near the origin (world units).
-fn layer_near_origin(b: &aobake::pipeline::Baked, half: f32) -> Vec<[f32; VIS_COUNT]> {
+fn layer_near_origin(b: &aobake::job::Baked, half: f32) -> Vec<[f32; VIS_COUNT]> {
     let v = &b.bake.visibility.as_ref().expect("a layer").v;
     (0..b.receivers.len())
         .filter(|&i| {
@@ -154,9 +154,17 @@ fn the_baked_layer_relights_tilted_normals_like_brute_force_at_the_texel() {
     s.adaptive.mean_rays = 0;
     s.fill_inside = false;
     let b = aobake::bake_scene(&sc, &s).unwrap();
-    let prepared =
-        aobake::pipeline::prepare(&sc, &s, &mut aobake::stage::StageTimer::new()).unwrap();
-    let (rc, tracer) = (&b.receivers, &prepared.tracer);
+    let level_prepared = aobake::job::Level::new(
+        &sc,
+        &s,
+        &aobake::RunOptions::QUIET,
+        &mut aobake::stage::StageTimer::new(),
+    )
+    .unwrap();
+    let prepared = level_prepared
+        .page(0, &sc, &s, &mut aobake::stage::StageTimer::new())
+        .unwrap();
+    let (rc, tracer) = (&b.receivers, &prepared.level.tracer);
     assert_eq!(rc.texel, prepared.receivers.texel);
     let v = &b.bake.visibility.as_ref().unwrap().v;
     let max_distance = (0.6 / b.geometry.space.diagonal) as f32;
@@ -240,7 +248,7 @@ fn primitive_ext(json: &Value, mesh: usize) -> &Value {
 fn the_file_carries_the_layer_where_a_material_reads_it() {
     let g = glossy_wall_file();
     let sc = scene(&g);
-    let s = aobake::Settings {
+    let s = aobake::BakeSettings {
         method: aobake::Method::Adaptive,
         ..settings(64, 64, Some(0.5))
     };
@@ -290,7 +298,7 @@ fn the_file_carries_the_layer_where_a_material_reads_it() {
     // Order 2: 3 textures, 9 coefficients, v8 in the third's red.
     let b2 = aobake::bake_scene(
         &sc,
-        &aobake::Settings {
+        &aobake::BakeSettings {
             visibility_order: 2,
             ..s.clone()
         },
@@ -304,7 +312,7 @@ fn the_file_carries_the_layer_where_a_material_reads_it() {
     // bytes.
     let off = aobake::bake_scene(
         &sc,
-        &aobake::Settings {
+        &aobake::BakeSettings {
             visibility: VisibilityMode::Off,
             ..s.clone()
         },
@@ -321,7 +329,7 @@ fn the_file_carries_the_layer_where_a_material_reads_it() {
     let auto = aobake::bake_scene(&plain, &s).unwrap();
     let none = aobake::bake_scene(
         &plain,
-        &aobake::Settings {
+        &aobake::BakeSettings {
             visibility: VisibilityMode::Off,
             ..s.clone()
         },
@@ -334,7 +342,7 @@ fn the_file_carries_the_layer_where_a_material_reads_it() {
 #[test]
 fn the_sheared_method_refuses_the_layer_and_a_bad_order_is_refused() {
     let sc = scene(&glossy_wall_file());
-    let s = aobake::Settings {
+    let s = aobake::BakeSettings {
         method: aobake::Method::Sheared,
         visibility: VisibilityMode::All,
         ..settings(32, 16, None)
@@ -344,7 +352,7 @@ fn the_sheared_method_refuses_the_layer_and_a_bad_order_is_refused() {
         e.contains("sheared method does not bake the visibility layer"),
         "{e}"
     );
-    let s = aobake::Settings {
+    let s = aobake::BakeSettings {
         visibility_order: 4,
         ..settings(32, 16, None)
     };

@@ -2,19 +2,15 @@
 //!
 //! In: the [`crate::geometry::ReceiverMesh`]es in bake space. Out: an
 //! [`Atlas`] (one page, a chart layout per receiver mesh), its
-//! [`Receivers`] (one point per covered texel, the paper's receivers), and
-//! after the bake the dilation map that fills gutters and texels inside
-//! geometry.
+//! [`Receivers`] (one point per covered texel, the paper's receivers).
 //!
 //! - [`unwrap`](mod@unwrap): charts and packing (`uvunwrap`), or an
 //!   existing UV set;
 //! - [`rasterize`](mod@rasterize): covered texels into receivers,
 //!   conservative at chart edges;
 //! - [`order`]: the receivers in world-space Morton order, for the tracing
-//!   passes' caches;
-//! - [`dilate`]: every texel's nearest valid receiver.
+//!   passes' caches.
 
-pub mod dilate;
 pub mod order;
 pub mod rasterize;
 pub mod unwrap;

@@ -15,35 +15,20 @@
 //! tracing passes 13.41 -> 12.92 s there and 8.64 -> 8.36 s on Sponza.
 //!
 //! Nothing reads receivers by position in the list: the texel grid, the
-//! dilation (sources in texel order, [`super::dilate`]), the encoders and
+//! dilation (sources in texel order, [`crate::lightmap::dilate`]), the encoders and
 //! each receiver's ray sequence (seeded by its texel) go through
 //! `texel`, so the order changes no output byte.
 //!
 //! Memory: while permuting, the receivers twice (88 B per texel) and the
 //! sort keys (16 B), under the output stages' 160 B per texel that
-//! [`crate::settings::estimated_bytes`] counts.
+//! [`crate::job::settings::estimated_bytes`] counts.
 
 use super::Receivers;
+use crate::bits::{MORTON3_BITS, morton3};
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// Bits per axis of the Morton code.
-const BITS: u32 = 21;
-
-/// The Morton code of a cell of a 2^21 grid: the bits of x, y and z
-/// interleaved (x lowest). Coordinates beyond 21 bits keep their low bits.
-#[inline]
-pub fn morton3(x: u32, y: u32, z: u32) -> u64 {
-    fn spread(v: u32) -> u64 {
-        let mut x = v as u64 & ((1 << BITS) - 1);
-        x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
-        x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
-        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
-        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
-        (x | (x << 2)) & 0x1249_2492_4924_9249
-    }
-    spread(x) | (spread(y) << 1) | (spread(z) << 2)
-}
+const BITS: u32 = MORTON3_BITS;
 
 /// The order (`order[new] = old`) of `positions` along the Morton curve
 /// of their bounding cube; ties (and non-finite positions, which go to

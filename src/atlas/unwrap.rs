@@ -35,8 +35,19 @@ pub struct UnwrapOptions {
 }
 
 /// Chart packing: `Fast` (rows; measured 6x faster on Sponza, 13x on 27k
-/// charts, ~8% fewer texels) or `Shape` (nests charts; densest).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+/// charts, ~8% fewer texels) or `Shape` (nests charts; densest, slow with
+/// thousands of charts).
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
 pub enum Packing {
     #[default]
     Fast,

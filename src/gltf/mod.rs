@@ -14,9 +14,11 @@
 //! - [`scene`]: nodes, transforms, primitives, instancing, bake space;
 //! - [`write`](mod@write): the document edited as `serde_json::Value`,
 //!   images appended to BIN;
-//! - [`uris`]: URIs relocated to the output's directory.
+//! - [`uris`]: URIs relocated to the output's directory;
+//! - `append`: accessors and bufferViews added to the output's BIN.
 
 pub mod accessor;
+mod append;
 pub mod container;
 pub mod scene;
 pub mod uris;

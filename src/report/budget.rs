@@ -1,12 +1,12 @@
 //! Budgets: the runs of a sweep, as `aobake report --budgets` writes them.
 //!
 //! In: a list such as `mc:64,sheared:8:4,adaptive:64`. Out: [`Budget`]s, each a
-//! method and its options, and the [`Settings`] a run bakes with.
+//! method and its options, and the [`BakeSettings`] a run bakes with.
 
 use crate::bake::adaptive::{AdaptiveOptions, MAX_ADAPTIVE_RAYS};
 use crate::bake::sheared::{MAX_FILTER_RAYS, ShearedOptions};
 use crate::error::{Error, Result};
-use crate::settings::{DEFAULT_RAYS, Method, Settings};
+use crate::job::settings::{BakeSettings, DEFAULT_RAYS, Method};
 
 /// The sweep used when `--budgets` is not given.
 pub const DEFAULT_BUDGETS: &str = "mc:8,mc:16,mc:32,mc:64,mc:128,mc:256,mc:512,\
@@ -22,7 +22,7 @@ pub struct Budget {
     pub method: Method,
     /// Monte Carlo rays per texel (Monte Carlo only).
     pub rays: u32,
-    pub filter: ShearedOptions,
+    pub sheared: ShearedOptions,
     pub adaptive: AdaptiveOptions,
 }
 
@@ -35,7 +35,7 @@ impl Budget {
         match self.method {
             Method::Mc => format!("mc:{}", self.rays),
             Method::Sheared => {
-                let f = &self.filter;
+                let f = &self.sheared;
                 let d = ShearedOptions::default();
                 let mut s = format!("sheared:{}:{}", f.sparse_rays, f.gather_radius);
                 if (f.cell_rays, f.omega_v_max, f.min_weight)
@@ -64,7 +64,7 @@ impl Budget {
     pub fn is_default(&self) -> bool {
         match self.method {
             Method::Mc => self.rays == TARGET_RAYS,
-            Method::Sheared => self.filter == ShearedOptions::default(),
+            Method::Sheared => self.sheared == ShearedOptions::default(),
             Method::Adaptive => self.adaptive == AdaptiveOptions::default(),
         }
     }
@@ -76,7 +76,7 @@ impl Budget {
         Budget {
             method: Method::Mc,
             rays,
-            filter: ShearedOptions::default(),
+            sheared: ShearedOptions::default(),
             adaptive: AdaptiveOptions::default(),
         }
     }
@@ -86,7 +86,7 @@ impl Budget {
         Budget {
             method: Method::Sheared,
             rays: 0,
-            filter: ShearedOptions::default(),
+            sheared: ShearedOptions::default(),
             adaptive: AdaptiveOptions::default(),
         }
     }
@@ -96,14 +96,14 @@ impl Budget {
         Budget {
             method: Method::Adaptive,
             rays: 0,
-            filter: ShearedOptions::default(),
+            sheared: ShearedOptions::default(),
             adaptive: AdaptiveOptions::default(),
         }
     }
 
     /// `base` with this budget's method and options, and `seed`.
-    pub fn settings(&self, base: &Settings, seed: u64) -> Settings {
-        Settings {
+    pub fn settings(&self, base: &BakeSettings, seed: u64) -> BakeSettings {
+        BakeSettings {
             method: self.method,
             // Other methods do not read it; the base's passes validation.
             rays: if self.method == Method::Mc {
@@ -111,7 +111,7 @@ impl Budget {
             } else {
                 base.rays
             },
-            filter: self.filter,
+            sheared: self.sheared,
             adaptive: self.adaptive,
             seed,
             ..base.clone()
@@ -180,7 +180,7 @@ pub fn parse_budgets(text: &str) -> Result<Vec<Budget>> {
                 Budget {
                     method: Method::Sheared,
                     rays: 0,
-                    filter: f,
+                    sheared: f,
                     adaptive: AdaptiveOptions::default(),
                 }
             }
@@ -220,7 +220,7 @@ pub fn parse_budgets(text: &str) -> Result<Vec<Budget>> {
                 Budget {
                     method: Method::Adaptive,
                     rays: 0,
-                    filter: ShearedOptions::default(),
+                    sheared: ShearedOptions::default(),
                     adaptive: a,
                 }
             }
@@ -248,11 +248,11 @@ mod tests {
         let b = parse_budgets("mc:8, filtered:16:6, filtered:8:4:3:1.5:2").unwrap();
         assert_eq!(b.len(), 3);
         assert_eq!((b[0].method, b[0].rays), (Method::Mc, 8));
-        assert_eq!(b[1].filter.sparse_rays, 16);
-        assert_eq!(b[1].filter.gather_radius, 6.0);
-        assert_eq!(b[2].filter.cell_rays, 3);
-        assert_eq!(b[2].filter.omega_v_max, 1.5);
-        assert_eq!(b[2].filter.min_weight, 2.0);
+        assert_eq!(b[1].sheared.sparse_rays, 16);
+        assert_eq!(b[1].sheared.gather_radius, 6.0);
+        assert_eq!(b[2].sheared.cell_rays, 3);
+        assert_eq!(b[2].sheared.omega_v_max, 1.5);
+        assert_eq!(b[2].sheared.min_weight, 2.0);
         assert_eq!(b[0].label(), "mc:8");
         assert_eq!(b[1].label(), "sheared:16:6");
         assert_eq!(b[2].label(), "sheared:8:4:3:1.5:2");

@@ -9,48 +9,76 @@ use super::budget::{Budget, DEFAULT_BUDGETS, parse_budgets};
 use super::metrics::ErrorStats;
 use crate::atlas::Receivers;
 use crate::error::{Error, Result};
-use crate::settings::Method;
+use crate::job::Method;
 use crate::stage::StageTime;
 use serde::Serialize;
 
-/// What `aobake report` is told.
-#[derive(Clone, Debug)]
+/// What `aobake report` is told. Each flag's doc comment is its `--help`
+/// line.
+#[derive(Clone, Debug, clap::Args)]
 pub struct ReportSettings {
-    /// Atlas page edge in texels.
+    /// Atlas page edge in texels
+    #[arg(long, value_name = "N", default_value_t = 512)]
     pub resolution: u32,
+    /// Rays per texel of the Monte Carlo reference
+    #[arg(long, value_name = "N", default_value_t = 2048)]
     pub reference_rays: u32,
-    pub budgets: Vec<Budget>,
-    /// Seed of the runs (the reference uses another one).
+    /// The runs (`--budgets`: [`Budget::label`]s, comma-separated).
+    #[arg(
+        long,
+        value_name = "LIST",
+        default_value = DEFAULT_BUDGETS,
+        value_parser = budget_list,
+        help = "Runs, comma-separated: mc:RAYS, adaptive:QUALITY[:PRE_RAYS:MAX_RAYS], \
+                adaptive-mean:MEAN_RAYS[:PRE_RAYS:MAX_RAYS] and \
+                sheared:SPARSE_RAYS:GATHER_RADIUS[:CELL_RAYS[:OMEGA_V[:MIN_WEIGHT]]]"
+    )]
+    pub budgets: ::std::vec::Vec<Budget>,
+    /// Seed of the runs (the reference uses another one)
+    #[arg(long, value_name = "S", default_value_t = 0)]
     pub seed: u64,
-    /// World units; `None`: the pipeline's default.
+    /// Occluders farther than this (world units) do not count [default: 0.1
+    /// x the scene's bounding-box diagonal]
+    #[arg(long, value_name = "D")]
     pub max_distance: Option<f64>,
-    /// Monte Carlo rays of the scale-stability bakes; 0 skips them.
+    /// Monte Carlo rays of the 1e-4 and 1e4 scale-stability bakes (0: skip
+    /// them)
+    #[arg(long, value_name = "N", default_value_t = 64)]
     pub stability_rays: u32,
     /// Also run each method's default settings if `budgets` lacks them
     /// (their error maps are drawn and 256-ray Monte Carlo sets the
     /// equal-error target).
+    #[arg(skip = true)]
     pub include_defaults: bool,
+    /// No progress bar and no summary
+    #[arg(short = 'q', long = "quiet", action = clap::ArgAction::SetFalse)]
     pub progress: bool,
 }
 
+/// `--budgets` as the command line parses it: the list, or why an item is
+/// wrong.
+fn budget_list(text: &str) -> std::result::Result<Vec<Budget>, String> {
+    parse_budgets(text).map_err(|e| match e {
+        Error::Option { detail, .. } => detail.trim_start_matches(": ").to_string(),
+        e => e.to_string(),
+    })
+}
+
 impl Default for ReportSettings {
+    /// The command line's defaults (written once, on the fields above).
     fn default() -> Self {
-        ReportSettings {
-            resolution: 512,
-            reference_rays: 2048,
-            budgets: parse_budgets(DEFAULT_BUDGETS).expect("default budgets parse"),
-            seed: 0,
-            max_distance: None,
-            stability_rays: 64,
-            include_defaults: true,
-            progress: true,
+        #[derive(clap::Parser)]
+        struct Flags {
+            #[command(flatten)]
+            settings: ReportSettings,
         }
+        <Flags as clap::Parser>::parse_from(["aobake report"]).settings
     }
 }
 
 impl ReportSettings {
     /// Checks the report's own settings (each run's bake settings are
-    /// checked by [`Settings::validate`]).
+    /// checked by [`crate::job::BakeSettings::validate`]).
     pub fn validate(&self) -> Result<()> {
         if self.reference_rays == 0 {
             return Err(Error::option("reference_rays", "must be at least 1"));
@@ -160,7 +188,7 @@ pub struct SweepReport {
     pub stability: Vec<StabilityRow>,
     /// The reference bake's smooth seams before and after stitching (the
     /// output stages' `seams`, counted in the shared seconds).
-    pub reference_seams: Option<crate::seams::SeamReport>,
+    pub reference_seams: Option<crate::lightmap::seams::SeamReport>,
     /// Files written next to report.json.
     pub files: Vec<String>,
 }

@@ -11,7 +11,7 @@ use super::markdown::markdown;
 use super::plot::{self, Curve, Plot, Target};
 use crate::atlas::Receivers;
 use crate::error::{Error, Result};
-use crate::settings::Method;
+use crate::job::Method;
 use std::path::Path;
 
 /// AO error map: red where `values` are darker than `reference`, green

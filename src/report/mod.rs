@@ -13,8 +13,8 @@
 //! - [`files`]: the error maps and the files of a report directory;
 //! - [`markdown`](mod@markdown): `report.md`.
 //!
-//! The scene is unwrapped, rasterized and its BVH built once
-//! ([`pipeline::prepare`]); a high-ray Monte Carlo *reference* and every
+//! The scene is unwrapped, rasterized and its BVH built once (one
+//! [`Level`] and its [`Page`] 0, through the job's API); a high-ray Monte Carlo *reference* and every
 //! run of the sweep bake those same receivers, so errors compare texel by
 //! texel. A run's end-to-end time is the shared stages (measured once,
 //! including encode and write of the reference) plus its own passes.
@@ -38,8 +38,7 @@ pub use markdown::markdown;
 use crate::atlas::AtlasSize;
 use crate::error::{Error, Result};
 use crate::gltf::Scene;
-use crate::pipeline::{self, Prepared};
-use crate::settings::{Method, Settings};
+use crate::job::{BakeSettings, Level, Method, Page, RunOptions};
 use crate::stage::{StageTimer, progress_bar, seconds_of};
 use metrics::{cost_at_error, error_stats, loglog_at, sh_band_rmse};
 
@@ -81,12 +80,12 @@ pub fn sweep(
             budgets.push(d);
         }
     }
-    let base = Settings {
+    let base = BakeSettings {
         size: AtlasSize::Resolution(rs.resolution),
         max_distance: rs.max_distance,
-        progress: false,
         ..Default::default()
     };
+    let run = RunOptions::QUIET;
     // Every run's settings, before the first stage.
     let ref_settings = Budget::mc(rs.reference_rays).settings(&base, reference_seed(rs.seed));
     ref_settings.validate()?;
@@ -99,12 +98,13 @@ pub fn sweep(
     // The validity stage is shared (its inside texels are left out of every
     // comparison), with the runs' seed: the adaptive method makes the same
     // test on the same rays in its pre-pass and is not charged for it.
-    let with_validity = Settings {
+    let with_validity = BakeSettings {
         method: Method::Mc,
         seed: rs.seed,
         ..base.clone()
     };
-    let prepared = pipeline::prepare(scene, &with_validity, &mut timer)?;
+    let level = Level::new(scene, &with_validity, &run, &mut timer)?;
+    let prepared = level.page(0, scene, &with_validity, &mut timer)?;
     let inside: &[bool] = prepared.inside.as_deref().unwrap_or_default();
     let texels = prepared.receivers.len();
 
@@ -112,17 +112,18 @@ pub fn sweep(
     // output stages.
     pb.set_message(format!("reference (mc:{})", rs.reference_rays));
     let mut ref_timer = StageTimer::new();
-    let reference = pipeline::bake_prepared(&prepared, &ref_settings, &mut ref_timer)?;
+    let reference = prepared.bake(&ref_settings, &run, &mut ref_timer)?;
     let reference_seconds = ref_timer.total();
-    let reference_seams = pipeline::output(
+    let out = prepared.finish(&reference, &ref_settings, &run, &mut timer)?;
+    crate::job::write(
         scene,
-        &prepared,
-        &reference,
+        &level,
+        &[&out.encoded],
         &ref_settings,
         None,
         &mut timer,
-    )?
-    .seams;
+    )?;
+    let reference_seams = out.seams;
     pb.inc(1);
     let shared_seconds = timer.total();
     let shared_stages = timer.into_stages();
@@ -143,12 +144,12 @@ pub fn sweep(
         pb.set_message(label.clone());
         let s = b.settings(&base, rs.seed);
         let mut run_timer = StageTimer::new();
-        let passes = pipeline::bake_prepared(&prepared, &s, &mut run_timer)?;
+        let passes = prepared.bake(&s, &run, &mut run_timer)?;
         let bake_seconds = run_timer.total();
         let ao = error_stats(&picked(&passes.bake.ao, &compared), ref_ao);
         let run_sh = picked(&passes.bake.sh, &compared);
         let sh_flat: Vec<f32> = run_sh.iter().flatten().copied().collect();
-        let fs = passes.filter_stats.as_ref();
+        let fs = passes.sheared_stats.as_ref();
         let default_settings = b.is_default();
         if default_settings && !default_ao.iter().any(|(l, _)| *l == label) {
             // The maps show texels inside geometry as the reference's (not
@@ -211,8 +212,8 @@ pub fn sweep(
         texels,
         texels_inside: texels - compared.len(),
         charts: prepared.atlas.charts,
-        occluder_triangles: prepared.tracer.triangle_count(),
-        max_distance_world: prepared.max_distance_world,
+        occluder_triangles: level.tracer.triangle_count(),
+        max_distance_world: level.max_distance_world,
         seed: rs.seed,
         reference_rays: rs.reference_rays,
         reference_seed: reference_seed(rs.seed),
@@ -287,34 +288,34 @@ pub fn scaled_scene(scene: &Scene, scale: f64) -> Scene {
 /// alike and compares the AO texel by texel.
 fn stability(
     scene: &Scene,
-    base: &Settings,
-    prepared: &Prepared,
+    base: &BakeSettings,
+    prepared: &Page,
     rs: &ReportSettings,
     reference_ao: &[f32],
 ) -> Result<Vec<StabilityRow>> {
     let s = Budget::mc(rs.stability_rays).settings(base, rs.seed);
-    let unscaled = pipeline::bake_prepared(prepared, &s, &mut StageTimer::new())?
-        .bake
-        .ao;
+    let run = RunOptions::QUIET;
+    let unscaled = prepared.bake(&s, &run, &mut StageTimer::new())?.bake.ao;
     let noise = error_stats(&unscaled, reference_ao).rmse;
     let mut rows = Vec::new();
     for scale in [1e-4, 1e4] {
         let scaled = scaled_scene(scene, scale);
-        let max_distance_world = prepared.max_distance_world * scale;
-        let ss = Settings {
+        let max_distance_world = prepared.level.max_distance_world * scale;
+        let ss = BakeSettings {
             max_distance: Some(max_distance_world),
             // Raw AO is compared, the inside fill is not: skip its pass.
             fill_inside: false,
             ..s.clone()
         };
         let mut timer = StageTimer::new();
-        let p = pipeline::prepare(&scaled, &ss, &mut timer)?;
+        let level = Level::new(&scaled, &ss, &run, &mut timer)?;
+        let p = level.page(0, &scaled, &ss, &mut timer)?;
         if p.receivers.texel != prepared.receivers.texel {
             return Err(Error::Limit(format!(
                 "the scene scaled by {scale:e} unwrapped to different texels; the stability table needs the same atlas"
             )));
         }
-        let ao = pipeline::bake_prepared(&p, &ss, &mut timer)?.bake.ao;
+        let ao = p.bake(&ss, &run, &mut timer)?.bake.ao;
         let d = error_stats(&ao, &unscaled);
         rows.push(StabilityRow {
             scale,

@@ -1,29 +1,25 @@
-//! Sharded bakes: shard I of N bakes its share of the pages into a
-//! partial beside the output; a merge writes the output from the set,
-//! byte-identical to a bake in one process.
+//! Shards: which pages shard I of N bakes, the partial file it writes,
+//! and the checks a merge makes on a set of partials. A leaf: it knows
+//! nothing of the bake job ([`crate::job::shard`] runs a shard and a
+//! merge through the job).
 //!
-//! In: the input, the output path, the settings and a [`Shard`] (given,
-//! or read from the scheduler's environment: [`Shard::from_env`]). Out:
-//! `OUT.shard-I-of-N` ([`partial`]), written atomically; then [`merge`]
-//! checks that the set is complete and of one bake and writes OUT.
+//! In: a [`Shard`] (given, or read from the scheduler's environment:
+//! [`Shard::from_env`]), the pages' predicted costs, a shard's encoded
+//! pages, and the partials beside an output. Out: the shard's pages
+//! ([`assign`]), `OUT.shard-I-of-N` ([`partial`]), and from a set the
+//! pages' images in page order, refused unless complete and of one bake
+//! ([`read_set`]).
 //!
 //! Pages are dealt to shards by their predicted cost ([`page_cost`]),
-//! largest first, each to the shard with the least so far ([`assign`]). Every shard unwraps
-//! the same atlas (the unwrap is deterministic) and bakes its pages with
-//! the same per-page seeds as a bake in one process, so its encoded
-//! images are the same bytes; the merge loads the input, unwraps again
-//! (no ray is cast, no image re-encoded) and writes every page's images.
+//! largest first, each to the shard with the least so far ([`assign`]).
 
 pub mod partial;
 
+use crate::bits::mix64;
 use crate::encode::Encoded;
 use crate::error::{Error, Result};
 use crate::file;
-use crate::gltf;
-use crate::pipeline::{self, Report};
-use crate::settings::Settings;
-use crate::stage::StageTimer;
-use partial::{FORMAT, Identity, Partial, PartialHeader};
+use partial::{Identity, Partial};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -152,11 +148,7 @@ pub fn assign(texels: &[f64], count: u32) -> Vec<Vec<u32>> {
 /// A 64-bit hash of bytes (splitmix-style, over 8-byte words), for the
 /// fingerprint: not cryptographic, only to tell files and settings apart.
 pub fn hash64(bytes: &[u8]) -> u64 {
-    let mix = |mut z: u64| {
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    };
+    let mix = mix64;
     let mut h = 0x9E37_79B9_7F4A_7C15u64 ^ bytes.len() as u64;
     let mut chunks = bytes.chunks_exact(8);
     for c in &mut chunks {
@@ -167,75 +159,51 @@ pub fn hash64(bytes: &[u8]) -> u64 {
     mix(h ^ u64::from_le_bytes(last) ^ 0xFF)
 }
 
-/// The settings as they decide the output bytes (progress bars and debug
-/// outputs left out), as JSON.
-fn settings_json(s: &Settings) -> serde_json::Value {
-    let mut s = s.clone();
-    s.progress = false;
-    s.debug_dir = None;
-    s.exr_dir = None;
-    serde_json::to_value(&s).expect("settings serialize")
-}
-
-fn identity(input_bytes: &[u8], s: &Settings, count: u32, pages: u32) -> Identity {
-    let settings = serde_json::to_vec(&settings_json(s)).expect("settings serialize");
+/// What identifies a bake for its shards: this aobake, the input's bytes,
+/// the settings' JSON (what decides the output bytes), the count of
+/// shards and of pages.
+pub fn identity(input_bytes: &[u8], settings_json: &[u8], count: u32, pages: u32) -> Identity {
     Identity {
         aobake: env!("CARGO_PKG_VERSION").to_string(),
         input_hash: format!("{:016x}", hash64(input_bytes)),
-        settings_hash: format!("{:016x}", hash64(&settings)),
+        settings_hash: format!("{:016x}", hash64(settings_json)),
         count,
         pages,
     }
 }
 
-/// Bakes shard `shard`'s pages of `input` and writes its partial beside
-/// `output` (atomically; a shard killed midway leaves none, a re-run
-/// replaces it). Returns the partial's path and the shard's report.
-pub fn run_shard(
-    input: &Path,
-    output: &Path,
-    s: &Settings,
-    shard: Shard,
-) -> Result<(PathBuf, Report)> {
-    pipeline::check_output(input, output)?;
-    let mut timer = StageTimer::new();
-    let (bytes, scene) = gltf::load_with_bytes(input)?;
-    timer.lap("load");
-    let level = pipeline::prepare_level(&scene, s, &mut timer)?;
-    let costs: Vec<f64> = (level.atlas.page_areas().into_iter())
-        .zip(level.atlas.page_triangles())
-        .map(|(t, n)| page_cost(t, n))
-        .collect();
-    let mine = assign(&costs, shard.count).swap_remove(shard.index as usize);
-    let done = pipeline::bake_pages(&scene, &level, &mine, s, &mut timer, &mut |_, _, _| {})?;
-    let header = PartialHeader {
-        format: FORMAT,
-        identity: identity(&bytes, s, shard.count, level.page_count()),
-        shard: shard.index,
-        input: std::fs::canonicalize(input)
-            .map_err(|e| Error::io(input, e))?
-            .display()
-            .to_string(),
-        settings: settings_json(s),
-        pages: Vec::new(),
-    };
-    let pages: Vec<(u32, &Encoded)> = done.iter().map(|d| (d.page, &d.encoded)).collect();
-    let path = partial_path(output, shard);
-    file::write_atomic(&path, &partial::write(header, &pages))?;
-    timer.lap("save");
-    let mut report = pipeline::level_report(&level, &done, s, scene.warnings.clone());
-    report.input = input.display().to_string();
-    report.shard = Some(shard);
-    Ok((path, pipeline::finish_report(report, timer)))
+/// A complete set of partials of one bake, checked ([`read_set`]).
+pub struct PartialSet {
+    /// Every partial, in shard order, with its path.
+    pub partials: Vec<(PathBuf, Partial)>,
+    /// Shards in the set.
+    pub count: u32,
 }
 
-/// What a merge did.
-#[derive(Clone, Debug)]
-pub struct Merged {
-    pub shards: u32,
-    pub pages: u32,
-    pub input: PathBuf,
-    pub warnings: Vec<String>,
+impl PartialSet {
+    /// The first partial's path and header: what the set agrees on.
+    pub fn reference(&self) -> (&Path, &partial::PartialHeader) {
+        let (path, p) = &self.partials[0];
+        (path, &p.header)
+    }
+
+    /// Every page's images, in page order.
+    pub fn pages(&self) -> Vec<&Encoded> {
+        let mut pages: Vec<(u32, &Encoded)> = (self.partials.iter())
+            .flat_map(|(_, p)| p.pages.iter().map(|(k, e)| (*k, e)))
+            .collect();
+        pages.sort_by_key(|&(k, _)| k);
+        pages.into_iter().map(|(_, e)| e).collect()
+    }
+
+    /// The refusal of the set's first partial, for `why`.
+    pub fn refuse(&self, why: String) -> Error {
+        refuse(self.reference().0, why)
+    }
+}
+
+fn refuse(path: &Path, why: String) -> Error {
+    Error::Merge(format!("{}: {why}", path.display()))
 }
 
 /// The partials beside `output` (`OUT.shard-I-of-N`), by file name.
@@ -265,11 +233,11 @@ fn find_partials(output: &Path) -> Result<Vec<(PathBuf, Shard)>> {
     Ok(out)
 }
 
-/// Checks that the partials beside `output` are one complete set of one
-/// bake and writes `output` from them (atomically; on any refusal nothing
-/// is written). The input is read again from the path the shards baked.
-pub fn merge(output: &Path) -> Result<Merged> {
-    let refuse = |path: &Path, why: String| Error::Merge(format!("{}: {why}", path.display()));
+/// Reads the partials beside `output` and checks that they are one
+/// complete set of one bake: each intact and under its own name, all of
+/// one count, aobake, input, settings and page count, every shard and
+/// every page present once.
+pub fn read_set(output: &Path) -> Result<PartialSet> {
     let found = find_partials(output)?;
     let Some((first_path, first)) = found.first().cloned() else {
         return Err(Error::Merge(format!(
@@ -352,19 +320,19 @@ pub fn merge(output: &Path) -> Result<Merged> {
         )));
     }
     let page_count = reference.identity.pages;
-    let mut pages: Vec<Option<(&Path, &Encoded)>> = vec![None; page_count as usize];
+    let mut pages: Vec<Option<&Path>> = vec![None; page_count as usize];
     for (path, p) in &partials {
-        for (page, e) in &p.pages {
+        for (page, _) in &p.pages {
             let slot = pages
                 .get_mut(*page as usize)
                 .ok_or_else(|| refuse(path, format!("holds page {page} of {page_count}")))?;
-            if let Some((other, _)) = slot {
+            if let Some(other) = slot {
                 return Err(refuse(
                     path,
                     format!("holds page {page}, which {} holds too", other.display()),
                 ));
             }
-            *slot = Some((path, e));
+            *slot = Some(path);
         }
     }
     if let Some(k) = pages.iter().position(Option::is_none) {
@@ -372,55 +340,7 @@ pub fn merge(output: &Path) -> Result<Merged> {
             "no partial holds page {k} of {page_count}"
         )));
     }
-    // The input as the shards saw it, and the same settings.
-    let input = PathBuf::from(&reference.input);
-    let (bytes, scene) = gltf::load_with_bytes(&input)?;
-    let settings: Settings = serde_json::from_value(reference.settings.clone())
-        .map_err(|e| refuse(&first_path, format!("unreadable settings ({e})")))?;
-    let expected = identity(&bytes, &settings, count, page_count);
-    if expected.input_hash != reference.identity.input_hash {
-        return Err(refuse(
-            &first_path,
-            format!("{} changed since the shards baked it", input.display()),
-        ));
-    }
-    if expected.aobake != reference.identity.aobake {
-        return Err(refuse(
-            &first_path,
-            format!(
-                "baked by aobake {}, this is {}",
-                reference.identity.aobake, expected.aobake
-            ),
-        ));
-    }
-    pipeline::check_output(&input, output)?;
-    let mut timer = StageTimer::new();
-    let level = pipeline::prepare_level(&scene, &settings, &mut timer)?;
-    if level.page_count() != page_count {
-        return Err(refuse(
-            &first_path,
-            format!(
-                "{page_count} pages, but the input unwraps into {}",
-                level.page_count()
-            ),
-        ));
-    }
-    let encoded: Vec<&Encoded> = pages.iter().map(|p| p.expect("checked").1).collect();
-    let (glb, warnings) = pipeline::write(
-        &scene,
-        &level,
-        &encoded,
-        &settings,
-        Some(file::parent_dir(output)),
-        &mut timer,
-    )?;
-    file::write_atomic(output, &glb)?;
-    Ok(Merged {
-        shards: count,
-        pages: page_count,
-        input,
-        warnings,
-    })
+    Ok(PartialSet { partials, count })
 }
 
 #[cfg(test)]

@@ -122,13 +122,12 @@ pub fn scene(bytes: &[u8]) -> aobake::gltf::Scene {
 }
 
 /// Settings for small, quick test bakes.
-pub fn settings(resolution: u32, rays: u32, max_distance: Option<f64>) -> aobake::Settings {
-    aobake::Settings {
+pub fn settings(resolution: u32, rays: u32, max_distance: Option<f64>) -> aobake::BakeSettings {
+    aobake::BakeSettings {
         size: aobake::atlas::AtlasSize::Resolution(resolution),
         method: aobake::Method::Mc,
         rays,
         max_distance,
-        progress: false,
         ..Default::default()
     }
 }
@@ -142,26 +141,40 @@ pub fn split(glb: &[u8]) -> (Value, Vec<u8>) {
     )
 }
 
+/// A one-page level and what made it: the examples bake its page 0 many
+/// times.
+pub struct OnePage {
+    pub s: aobake::BakeSettings,
+    pub scene: aobake::gltf::Scene,
+    pub level: aobake::job::Level,
+}
+
+impl OnePage {
+    /// Page 0, rasterized (deterministic: every call gives the same).
+    pub fn page(&self) -> aobake::job::Page<'_> {
+        let mut timer = aobake::stage::StageTimer::new();
+        self.level
+            .page(0, &self.scene, &self.s, &mut timer)
+            .expect("page")
+    }
+}
+
 /// For the examples: the scene at `path` prepared at `resolution` without
-/// the inside fill (raw values are compared), and the Monte Carlo settings
-/// of its `rays`-ray reference.
-pub fn prepare_for_reference(
-    path: &std::path::Path,
-    resolution: u32,
-    rays: u32,
-) -> (aobake::Settings, aobake::pipeline::Prepared) {
-    use aobake::stage::StageTimer;
+/// the inside fill (raw values are compared), with the Monte Carlo
+/// settings of its `rays`-ray reference.
+pub fn prepare_for_reference(path: &std::path::Path, resolution: u32, rays: u32) -> OnePage {
     let scene = aobake::gltf::load(path).expect("load");
-    let s = aobake::Settings {
+    let s = aobake::BakeSettings {
         size: aobake::atlas::AtlasSize::Resolution(resolution),
         method: aobake::Method::Mc,
         rays,
-        progress: false,
         fill_inside: false,
         ..Default::default()
     };
-    let p = aobake::pipeline::prepare(&scene, &s, &mut StageTimer::new()).expect("prepare");
-    (s, p)
+    let mut timer = aobake::stage::StageTimer::new();
+    let level = aobake::job::Level::new(&scene, &s, &aobake::RunOptions::QUIET, &mut timer)
+        .expect("prepare");
+    OnePage { s, scene, level }
 }
 
 /// [`prepare_for_reference`] and that reference.
@@ -169,21 +182,22 @@ pub fn reference_bake(
     path: &std::path::Path,
     resolution: u32,
     rays: u32,
-) -> (
-    aobake::Settings,
-    aobake::pipeline::Prepared,
-    aobake::bake::Bake,
-) {
-    use aobake::stage::StageTimer;
-    let (s, p) = prepare_for_reference(path, resolution, rays);
-    let reference = aobake::pipeline::bake_prepared(&p, &s, &mut StageTimer::new())
+) -> (OnePage, aobake::bake::Bake) {
+    let one = prepare_for_reference(path, resolution, rays);
+    let reference = one
+        .page()
+        .bake(
+            &one.s,
+            &aobake::RunOptions::QUIET,
+            &mut aobake::stage::StageTimer::new(),
+        )
         .expect("reference")
         .bake;
-    (s, p, reference)
+    (one, reference)
 }
 
 /// The output GLB of a bake run on a pool of `threads` threads.
-pub fn glb_on_threads(g: &[u8], s: &aobake::Settings, threads: usize) -> Vec<u8> {
+pub fn glb_on_threads(g: &[u8], s: &aobake::BakeSettings, threads: usize) -> Vec<u8> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -233,7 +247,7 @@ pub fn floor_and_wall() -> aobake::gltf::Scene {
 }
 
 /// A bake without the inside fill (raw values are compared).
-pub fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::Settings) -> aobake::pipeline::Baked {
+pub fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::BakeSettings) -> aobake::job::Baked {
     s.fill_inside = false;
     aobake::bake_scene(sc, &s).unwrap()
 }

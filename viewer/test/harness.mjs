@@ -29,11 +29,16 @@ export function bake(input, output, args = []) {
   return output;
 }
 
-/** Starts `aobake view` on a free port; resolves to { url, stop }. */
-export function serve(model) {
-  const args = ['view', '--port', '0', '--viewer-dir', viewerDir];
+/**
+ * Starts `aobake view` on a free port; resolves to { url, stop }. By
+ * default it serves this checkout's viewer/; with `builtIn` the copy built
+ * into the binary, run from `cwd` (as an installed binary would be).
+ */
+export function serve(model, { builtIn = false, cwd = undefined } = {}) {
+  const args = ['view', '--port', '0'];
+  if (!builtIn) args.push('--viewer-dir', viewerDir);
   if (model) args.push(model);
-  const child = spawn(aobake, args, { stdio: ['ignore', 'pipe', 'inherit'] });
+  const child = spawn(aobake, args, { stdio: ['ignore', 'pipe', 'inherit'], cwd });
   return new Promise((ok, fail) => {
     let out = '';
     child.on('exit', (code) => fail(new Error(`aobake view exited (${code}): ${out}`)));

@@ -4,12 +4,12 @@
 //!
 //! In: [`Receivers`], a [`Tracer`], [`ShearedOptions`], [`BakeParams`].
 //! Out: a [`Bake`] (AO and SH per receiver, same definitions as the Monte
-//! Carlo baker) and [`FilterStats`].
+//! Carlo baker) and [`ShearedStats`].
 //!
 //! | file | what | paper |
 //! |---|---|---|
 //! | `mod.rs` | [`bake`]: both passes, timed | Section 5 |
-//! | `types.rs` | what goes in and out: [`ShearedOptions`], [`Samples`], [`FilterStats`] | |
+//! | `types.rs` | what goes in and out: [`ShearedOptions`], [`Samples`], [`ShearedStats`] | |
 //! | [`passes`] | the sparse pass, the filter pass over all receivers | Algorithm 1's outer loop |
 //! | [`receiver`] | one receiver: gather, depth bounds, marks, filter, brute force | Algorithm 1, lines 1-33 |
 //! | [`geometry`] | per-pair math: leak rule, Eq. 8, Eq. 9, Figure 6, weights, Jacobian | Eqs. 8-9, Figure 6 |
@@ -90,7 +90,7 @@ pub use geometry::*;
 pub use order::{locality_order, unpermuted};
 pub use passes::{filter_pass, sparse_pass, sparse_t_max};
 pub use receiver::{MIN_CELL_SAMPLES, MIN_DEPTH_HITS, cell_estimates};
-pub use types::{FilterStats, MAX_FILTER_RAYS, MAX_GATHER_RADIUS, Samples, ShearedOptions};
+pub use types::{MAX_FILTER_RAYS, MAX_GATHER_RADIUS, Samples, ShearedOptions, ShearedStats};
 
 use super::{Bake, BakeParams};
 use crate::atlas::Receivers;
@@ -110,7 +110,7 @@ pub fn bake(
     p: &BakeParams,
     timer: &mut StageTimer,
     progress: &(dyn Fn(u64) + Sync),
-) -> Result<(Bake, FilterStats)> {
+) -> Result<(Bake, ShearedStats)> {
     let order = locality_order(receivers);
     let local = receivers.permuted(&order);
     let samples = sparse_pass(&local, tracer, s, p);

@@ -2,37 +2,30 @@
 //! passes, and the results back in the receivers' own order.
 //!
 //! In: [`Receivers`]. Out: an order (`order[new] = old`) for
-//! [`Receivers::permuted`], and a [`Bake`] and [`FilterStats`] unpermuted.
+//! [`Receivers::permuted`], and a [`Bake`] and [`ShearedStats`] unpermuted.
 
-use super::types::FilterStats;
+use super::types::ShearedStats;
 use crate::atlas::Receivers;
 use crate::bake::Bake;
+use crate::bits::morton2;
 
 /// An order of the receivers in which texels near each other in the atlas
 /// are near each other in memory (Morton order of their texel
 /// coordinates), so a receiver's world-space neighbours, which are mostly
 /// its atlas neighbours, and their samples share cache lines.
 pub fn locality_order(receivers: &Receivers) -> Vec<u32> {
-    fn spread(v: u32) -> u64 {
-        let mut x = v as u64 & 0xffff_ffff;
-        x = (x | (x << 16)) & 0x0000_ffff_0000_ffff;
-        x = (x | (x << 8)) & 0x00ff_00ff_00ff_00ff;
-        x = (x | (x << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
-        x = (x | (x << 2)) & 0x3333_3333_3333_3333;
-        (x | (x << 1)) & 0x5555_5555_5555_5555
-    }
     let w = receivers.width.max(1);
     let mut order: Vec<u32> = (0..receivers.len() as u32).collect();
     order.sort_by_key(|&i| {
         let t = receivers.texel[i as usize];
-        spread(t % w) | (spread(t / w) << 1)
+        morton2(t % w, t / w)
     });
     order
 }
 
 /// A bake and its per-receiver statistics, from `order` back to the
 /// receivers' own order.
-pub fn unpermuted(bake: Bake, stats: FilterStats, order: &[u32]) -> (Bake, FilterStats) {
+pub fn unpermuted(bake: Bake, stats: ShearedStats, order: &[u32]) -> (Bake, ShearedStats) {
     fn back<T: Copy + Default>(v: &[T], order: &[u32]) -> Vec<T> {
         let mut out = vec![T::default(); v.len()];
         for (new, &old) in order.iter().enumerate() {
@@ -47,7 +40,7 @@ pub fn unpermuted(bake: Bake, stats: FilterStats, order: &[u32]) -> (Bake, Filte
             rays: bake.rays,
             visibility: None,
         },
-        FilterStats {
+        ShearedStats {
             brute_fraction: back(&stats.brute_fraction, order),
             z_min: back(&stats.z_min, order),
             neighbours: back(&stats.neighbours, order),
@@ -94,7 +87,7 @@ mod tests {
             rays: 7,
             visibility: None,
         };
-        let stats = FilterStats {
+        let stats = ShearedStats {
             z_min: local.footprint.clone(),
             neighbours: local.texel.clone(),
             brute_fraction: local.footprint.clone(),

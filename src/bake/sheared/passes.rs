@@ -3,10 +3,10 @@
 //! filtered from its neighbours' samples, in parallel).
 //!
 //! In: [`Receivers`] in locality order, a [`Tracer`], [`ShearedOptions`],
-//! [`BakeParams`]. Out: [`Samples`], then a [`Bake`] and [`FilterStats`].
+//! [`BakeParams`]. Out: [`Samples`], then a [`Bake`] and [`ShearedStats`].
 
 use super::receiver::{Pass, ReceiverResult, Scratch, filter_receiver};
-use super::types::{FilterStats, SPARSE_STREAM, Samples, ShearedOptions};
+use super::types::{SPARSE_STREAM, Samples, ShearedOptions, ShearedStats};
 use crate::atlas::Receivers;
 use crate::bake::{Bake, BakeParams, ReceiverRays};
 use crate::error::Result;
@@ -89,7 +89,7 @@ pub fn filter_pass(
     s: &ShearedOptions,
     params: &BakeParams,
     progress: &(dyn Fn(u64) + Sync),
-) -> Result<(Bake, FilterStats)> {
+) -> Result<(Bake, ShearedStats)> {
     let pass = Pass::new(receivers, samples, tracer, s, params)?;
     let n = receivers.len();
     let results: Vec<ReceiverResult> = (0..n)
@@ -104,7 +104,7 @@ pub fn filter_pass(
         })
         .collect();
     let k = samples.per_receiver;
-    let mut stats = FilterStats {
+    let mut stats = ShearedStats {
         sparse_rays: samples.t.iter().filter(|&&t| t >= 0.0).count() as u64,
         ..Default::default()
     };

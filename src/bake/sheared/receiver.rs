@@ -4,7 +4,7 @@
 //! In: a [`Pass`] (the receivers in locality order, their sparse
 //! [`Samples`], the k-d tree over their positions, the tracer, options)
 //! and a receiver index. Out: a [`ReceiverResult`]: its AO and SH and the
-//! counts behind [`super::FilterStats`].
+//! counts behind [`super::ShearedStats`].
 
 use super::geometry::{
     hit_offset, lends_rays, mid_depth, miss_depths, needs_brute_force, reproject,

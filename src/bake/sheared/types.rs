@@ -3,7 +3,7 @@
 //!
 //! In: nothing (the bottom of the folder; every other file uses these).
 //! Out: [`ShearedOptions`] (validated once, by the pipeline), [`Samples`],
-//! [`FilterStats`] with its `--debug-dir` maps.
+//! [`ShearedStats`] with its `--debug-dir` maps.
 
 use crate::error::{Error, Result};
 use crate::sample::CELL_COUNT;
@@ -15,35 +15,54 @@ pub(super) const SPARSE_STREAM: u64 = 1;
 
 /// Options of the sheared filter (paper defaults where the paper gives
 /// one). The max distance and seed every method shares are in
-/// [`BakeParams`].
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+/// [`BakeParams`]. Each field's doc comment is its `--help` line; the
+/// measurements behind the defaults are in the comments above
+/// [`ShearedOptions::DEFAULT`] and in `docs/method-sheared.md`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, clap::Args)]
 pub struct ShearedOptions {
-    /// Sparse rays per receiver (paper: 4-32). 4 measured best at the
-    /// default radius: at 1024 texels against 8 it took 0.91x the time on
-    /// Sponza (AO RMSE 0.0113 vs 0.0115), 0.98x on the engine (0.0107 vs
-    /// 0.0108) and 0.82x on the Cornell box (0.0071 vs 0.0069, where
-    /// Monte Carlo pays about 4% more time per 3% less error).
+    /// Sheared: sparse rays per texel, shared with the neighbours
+    #[arg(long, value_name = "K", default_value_t = Self::DEFAULT.sparse_rays)]
     pub sparse_rays: u32,
-    /// Neighbour gather radius in texel footprints (paper: 8-16 pixels).
+    /// Sheared: neighbour gather radius in texel footprints
+    #[arg(long, value_name = "R", default_value_t = Self::DEFAULT.gather_radius)]
     pub gather_radius: f32,
-    /// Angular bandlimit Omega_v^max (paper: 2).
+    /// Sheared: angular bandlimit Omega_v^max (larger: sharper, more brute
+    /// force)
+    #[arg(long = "omega-v", value_name = "W", default_value_t = Self::DEFAULT.omega_v_max)]
     pub omega_v_max: f32,
-    /// Cells with less filter weight than this are brute-forced (paper: ~2
-    /// samples; 4 measured better on Sponza: AO RMSE 0.0147 vs 0.0156).
+    /// Sheared: hemisphere cells with less filter weight (about that many
+    /// samples) are brute-forced
+    #[arg(long, value_name = "W", default_value_t = Self::DEFAULT.min_weight)]
     pub min_weight: f32,
-    /// Brute-force rays per marked cell (paper: 1).
+    /// Sheared: brute-force rays per hemisphere cell the filter cannot serve
+    #[arg(long, value_name = "C", default_value_t = Self::DEFAULT.cell_rays)]
     pub cell_rays: u32,
+}
+
+impl ShearedOptions {
+    /// Every option's default.
+    pub const DEFAULT: ShearedOptions = ShearedOptions {
+        // Paper: 4-32. 4 measured best at the default radius: at 1024
+        // texels against 8 it took 0.91x the time on Sponza (AO RMSE
+        // 0.0113 vs 0.0115), 0.98x on the engine (0.0107 vs 0.0108) and
+        // 0.82x on the Cornell box (0.0071 vs 0.0069, where Monte Carlo
+        // pays about 4% more time per 3% less error).
+        sparse_rays: 4,
+        // Paper: 8-16 pixels.
+        gather_radius: 4.0,
+        // Paper: 2.
+        omega_v_max: 2.0,
+        // Paper: ~2 samples; 4 measured better on Sponza (AO RMSE 0.0147
+        // vs 0.0156).
+        min_weight: 4.0,
+        // Paper: 1.
+        cell_rays: 2,
+    };
 }
 
 impl Default for ShearedOptions {
     fn default() -> Self {
-        ShearedOptions {
-            sparse_rays: 4,
-            gather_radius: 4.0,
-            omega_v_max: 2.0,
-            min_weight: 4.0,
-            cell_rays: 2,
-        }
+        ShearedOptions::DEFAULT
     }
 }
 
@@ -103,7 +122,7 @@ impl ShearedOptions {
 
 /// Counters and per-receiver diagnostics of a filtered bake.
 #[derive(Clone, Debug, Default)]
-pub struct FilterStats {
+pub struct ShearedStats {
     pub sparse_rays: u64,
     pub brute_rays: u64,
     /// Cells whose occlusion came from the filter, from brute force, or that
@@ -130,7 +149,7 @@ pub struct FilterStats {
     pub sparse_ao: Vec<f32>,
 }
 
-impl FilterStats {
+impl ShearedStats {
     /// A count of cells as a fraction of all hemisphere cells (64 per
     /// receiver).
     pub fn cell_share(&self, cells: u64) -> f64 {

@@ -1,14 +1,69 @@
 //! The `--report` JSON: what a bake did, stage by stage and page by page.
 //!
-//! In: the figures the pipeline's stages return. Out: [`Report`] and its
-//! parts, serialized by the CLI's `--report`.
+//! In: the level and what each baked page kept ([`PageDone`]). Out:
+//! [`Report`] and its parts ([`level_report`]), serialized by the CLI's
+//! `--report`.
 
+use super::level::Level;
+use super::page::BakePasses;
 use crate::bake::adaptive::{self, AdaptiveStats};
-use crate::bake::sheared::{self, FilterStats};
-use crate::seams::SeamReport;
-use crate::settings::Method;
-use crate::stage::StageTime;
+use crate::bake::sheared::{self, ShearedStats};
+use crate::encode::Encoded;
+use crate::job::settings::{BakeSettings, Method};
+use crate::lightmap::seams::SeamReport;
+use crate::shard::Shard;
+use crate::stage::{StageTime, total};
 use serde::Serialize;
+
+/// A page baked and encoded, and its figures for the report (what a bake
+/// keeps of a page once its working set is freed).
+#[derive(Clone, Debug)]
+pub struct PageDone {
+    pub page: u32,
+    pub encoded: Encoded,
+    pub texels: usize,
+    pub texels_inside: usize,
+    pub rays: u64,
+    pub visibility_rays: Option<u64>,
+    pub adaptive: Option<AdaptiveReport>,
+    pub sheared: Option<ShearedReport>,
+    pub seams: Option<SeamReport>,
+    /// Seconds of the method's passes.
+    pub pass_seconds: f64,
+}
+
+impl PageDone {
+    /// What the report keeps of page `page`: its receivers' count, the
+    /// method's figures and the encoded images.
+    pub fn new(
+        page: u32,
+        texels: usize,
+        inside: &[bool],
+        passes: &BakePasses,
+        encoded: Encoded,
+        seams: Option<SeamReport>,
+        s: &BakeSettings,
+    ) -> PageDone {
+        PageDone {
+            page,
+            encoded,
+            texels,
+            texels_inside: inside.iter().filter(|&&x| x).count(),
+            rays: passes.bake.rays,
+            visibility_rays: passes.bake.visibility.as_ref().map(|v| v.rays),
+            adaptive: passes
+                .adaptive_stats
+                .as_ref()
+                .map(|a| AdaptiveReport::new(&s.adaptive, a)),
+            sheared: passes
+                .sheared_stats
+                .as_ref()
+                .map(|f| ShearedReport::new(&s.sheared, f)),
+            seams,
+            pass_seconds: total(&passes.stages),
+        }
+    }
+}
 
 /// The `--report` JSON.
 #[derive(Clone, Debug, Serialize)]
@@ -26,7 +81,7 @@ pub struct Report {
     pub pages: Vec<PageReport>,
     /// `--shard I/N`: this run baked only shard I's pages.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub shard: Option<crate::shard::Shard>,
+    pub shard: Option<Shard>,
     pub charts: u32,
     pub utilization: f32,
     pub texels: usize,
@@ -35,14 +90,14 @@ pub struct Report {
     pub texels_inside: usize,
     pub baked_primitives: usize,
     pub occluder_triangles: usize,
-    /// Monte Carlo rays per texel (the `rays` setting; 0 for filtered).
+    /// Monte Carlo rays per texel (the `rays` setting; 0 for the others).
     pub rays_per_texel: u32,
     pub rays_cast: u64,
     /// Rays cast per texel, all passes together.
     pub rays_per_texel_total: f64,
-    /// Filtered method only.
+    /// Sheared method only.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub filter: Option<FilterReport>,
+    pub sheared: Option<ShearedReport>,
     /// Adaptive method only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<AdaptiveReport>,
@@ -59,7 +114,7 @@ pub struct Report {
     pub seed: u64,
     pub threads: usize,
     /// Every stage in order, each timed once (`sparse pass` and `filter
-    /// pass` for the filtered method, `trace` for Monte Carlo).
+    /// pass` for the sheared method, `trace` for Monte Carlo).
     pub stages: Vec<StageTime>,
     /// The stages' seconds added up.
     pub total_seconds: f64,
@@ -98,9 +153,9 @@ pub struct VisibilityReport {
     pub rays_per_texel: f64,
 }
 
-/// The filtered method's figures in the report.
+/// The sheared method's figures in the report.
 #[derive(Clone, Debug, Serialize)]
-pub struct FilterReport {
+pub struct ShearedReport {
     pub sparse_rays_per_texel: u32,
     pub gather_radius_texels: f32,
     pub omega_v_max: f32,
@@ -178,10 +233,10 @@ impl AdaptiveReport {
     }
 }
 
-impl FilterReport {
+impl ShearedReport {
     /// Adds another page's figures: counts add, shares and means are
     /// weighted by texels (`n` here, `n_other` there).
-    pub fn merge(&mut self, n: usize, other: &FilterReport, n_other: usize) {
+    pub fn merge(&mut self, n: usize, other: &ShearedReport, n_other: usize) {
         let (a, b) = (n as f64, n_other as f64);
         let mean = |x: f64, y: f64| (x * a + y * b) / (a + b).max(1.0);
         self.sparse_rays += other.sparse_rays;
@@ -195,9 +250,9 @@ impl FilterReport {
         self.mean_neighbours = mean(self.mean_neighbours, other.mean_neighbours);
     }
 
-    pub(super) fn new(s: &sheared::ShearedOptions, f: &FilterStats) -> FilterReport {
+    pub(super) fn new(s: &sheared::ShearedOptions, f: &ShearedStats) -> ShearedReport {
         let texels = f.brute_fraction.len().max(1) as f64;
-        FilterReport {
+        ShearedReport {
             sparse_rays_per_texel: s.sparse_rays,
             gather_radius_texels: s.gather_radius,
             omega_v_max: s.omega_v_max,
@@ -213,4 +268,111 @@ impl FilterReport {
             mean_neighbours: f.neighbours.iter().map(|&n| n as f64).sum::<f64>() / texels,
         }
     }
+}
+
+/// The report of a level from its baked pages (`done`: every page, or a
+/// shard's).
+pub fn level_report(
+    level: &Level,
+    done: &[PageDone],
+    s: &BakeSettings,
+    warnings: Vec<String>,
+) -> Report {
+    let texels: usize = done.iter().map(|d| d.texels).sum();
+    let rays: u64 = done.iter().map(|d| d.rays).sum();
+    let pass_seconds: f64 = done.iter().map(|d| d.pass_seconds).sum();
+    let chart_texels = level.atlas.page_areas();
+    let triangles = level.atlas.page_triangles();
+    let pages = level
+        .atlas
+        .pages
+        .iter()
+        .enumerate()
+        .map(|(k, size)| {
+            let d = done.iter().find(|d| d.page == k as u32);
+            PageReport {
+                page: k as u32,
+                width: size.width,
+                height: size.height,
+                chart_texels: chart_texels[k],
+                triangles: triangles[k],
+                baked: d.is_some(),
+                texels: d.map_or(0, |d| d.texels),
+                texels_inside: d.map_or(0, |d| d.texels_inside),
+                rays_cast: d.map_or(0, |d| d.rays),
+                seams: d.and_then(|d| d.seams),
+            }
+        })
+        .collect();
+    let adaptive = merged(
+        done.iter()
+            .filter_map(|d| Some((d.adaptive.as_ref()?, d.texels))),
+        AdaptiveReport::merge,
+    );
+    let sheared = merged(
+        done.iter()
+            .filter_map(|d| Some((d.sheared.as_ref()?, d.texels))),
+        ShearedReport::merge,
+    );
+    let visibility_rays: Option<u64> = done.iter().map(|d| d.visibility_rays).sum();
+    Report {
+        input: String::new(),
+        method: s.method,
+        atlas_width: level.atlas.width,
+        atlas_height: level.atlas.height,
+        texel_density: level.texel_density(),
+        pages,
+        shard: None,
+        charts: level.atlas.charts,
+        utilization: level.atlas.utilization,
+        texels,
+        texels_inside: done.iter().map(|d| d.texels_inside).sum(),
+        baked_primitives: level.geometry.receivers.len(),
+        occluder_triangles: level.tracer.triangle_count(),
+        rays_per_texel: if s.method == Method::Mc { s.rays } else { 0 },
+        rays_cast: rays,
+        rays_per_texel_total: rays as f64 / texels.max(1) as f64,
+        sheared,
+        adaptive,
+        visibility: visibility_rays.map(|v| VisibilityReport {
+            order: s.visibility_order,
+            primitives: level.visibility_meshes.iter().filter(|&&m| m).count(),
+            rays: v,
+            rays_per_texel: v as f64 / texels.max(1) as f64,
+        }),
+        seams: match done {
+            [one] if level.page_count() == 1 => one.seams,
+            _ => None,
+        },
+        rays_per_second: if pass_seconds > 0.0 {
+            rays as f64 / pass_seconds
+        } else {
+            0.0
+        },
+        max_distance: level.max_distance_world,
+        seed: s.seed,
+        threads: rayon::current_num_threads(),
+        stages: Vec::new(),
+        total_seconds: 0.0,
+        warnings,
+    }
+}
+
+/// Pages' figures (each with its texels) merged into one by `merge(acc,
+/// texels so far, next, its texels)`; `None` without any.
+fn merged<'a, T: Clone + 'a>(
+    parts: impl Iterator<Item = (&'a T, usize)>,
+    merge: impl Fn(&mut T, usize, &T, usize),
+) -> Option<T> {
+    let mut acc: Option<(T, usize)> = None;
+    for (part, n) in parts {
+        match &mut acc {
+            Some((a, total)) => {
+                merge(a, *total, part, n);
+                *total += n;
+            }
+            None => acc = Some((part.clone(), n)),
+        }
+    }
+    acc.map(|(a, _)| a)
 }

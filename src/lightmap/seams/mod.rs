@@ -25,7 +25,18 @@ pub use solve::Anchor;
 pub use solve::StitchStats;
 
 use crate::sh::{SH_COUNT, VIS_COUNT};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+
+/// What happens at smooth seams (`--seams`): `Stitch`, least-squares
+/// stitching of both sides ([`stitch_page`]), or `Off`, each side keeping
+/// its own baked and dilated texels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum SeamMode {
+    #[default]
+    Stitch,
+    Off,
+}
 
 /// Seams whose two sides' vertex normals agree within this angle at both
 /// ends are stitched (and measured); the seams issue's metric uses 10.

@@ -1,0 +1,259 @@
+//! Level and page: what every page of a bake shares, and one page ready
+//! for the first ray.
+//!
+//! In: a loaded [`Scene`] and validated [`BakeSettings`]. Out: a [`Level`]
+//! (bake-space geometry, the atlas of every page, the BVH, which meshes
+//! get the visibility layer), built once; then per page a [`Page`] that
+//! borrows the level and owns only what is the page's (its one-page atlas,
+//! its receivers, the texels inside geometry), freed once the page is
+//! encoded. Peak memory is the level plus one page, and the memory limit
+//! is checked per page.
+
+use crate::atlas::{self, Atlas, AtlasSize, Receivers, UnwrapOptions};
+use crate::bake::validity;
+use crate::error::{Error, Result};
+use crate::geometry::BakeGeometry;
+use crate::gltf::Scene;
+use crate::job::settings::{
+    BakeSettings, DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, RunOptions, UvSource,
+    VisibilityMode, estimated_bytes_with,
+};
+use crate::lightmap::seams::find::cross_page_seams;
+use crate::lightmap::seams::{CrossSeam, SMOOTH_DEGREES, SeamMode};
+use crate::stage::{StageTimer, progress_bar};
+use crate::trace::Tracer;
+
+/// What every page of a bake shares: everything before the first texel.
+pub struct Level {
+    pub geometry: BakeGeometry,
+    /// Every page's charts.
+    pub atlas: Atlas,
+    pub tracer: Tracer,
+    /// Max occluder distance in world units.
+    pub max_distance_world: f64,
+    /// The same in bake units.
+    pub max_distance: f32,
+    /// Per receiver mesh: it gets the visibility layer (`--visibility`,
+    /// `auto` from its material).
+    pub visibility_meshes: Vec<bool>,
+    /// Smooth seams whose sides lie on two pages (`--seams stitch`).
+    pub cross_seams: Vec<CrossSeam>,
+}
+
+/// One page of a level, prepared: every stage before the first ray. It
+/// borrows the level, so what every page shares is never copied.
+pub struct Page<'a> {
+    pub level: &'a Level,
+    /// The page's index in the level's atlas.
+    pub page: u32,
+    /// This page alone, as a one-page atlas.
+    pub atlas: Atlas,
+    pub receivers: Receivers,
+    /// Per receiver: inside or behind geometry ([`crate::bake::validity`]);
+    /// its texel shows its nearest valid receiver instead. All false
+    /// without the fill; `None` when the method finds them itself (the
+    /// adaptive method, in its pre-pass).
+    pub inside: Option<Vec<bool>>,
+}
+
+impl Level {
+    /// Whether the bake makes the visibility layer.
+    pub fn bakes_visibility(&self) -> bool {
+        self.visibility_meshes.iter().any(|&v| v)
+    }
+}
+
+/// The seed of page `page`'s rays: the bake's own for page 0 (so a
+/// one-page bake is unchanged), a different stream for every other page.
+pub fn page_seed(seed: u64, page: u32) -> u64 {
+    if page == 0 {
+        seed
+    } else {
+        seed ^ (page as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+    }
+}
+
+impl Level {
+    /// Unwraps into pages and builds the BVH. Validates `s` first.
+    pub fn new(
+        scene: &Scene,
+        s: &BakeSettings,
+        run: &RunOptions,
+        timer: &mut StageTimer,
+    ) -> Result<Level> {
+        s.validate()?;
+        if scene.baked_count() == 0 {
+            return Err(Error::Empty(if scene.instances.is_empty() {
+                "the default scene has no triangle primitive (points and lines are not baked)"
+                    .into()
+            } else {
+                "every triangle mesh of the default scene is skinned, morphed or GPU-instanced (they only occlude)".into()
+            }));
+        }
+        let geometry = scene.bake_geometry()?;
+        let diagonal = geometry.space.diagonal;
+        let max_distance_world = s
+            .max_distance
+            .unwrap_or(DEFAULT_MAX_DISTANCE_FRACTION * diagonal);
+        timer.lap("prepare");
+        let label = |k: usize| {
+            scene.geometries[scene.instances[geometry.receivers[k].instance].geometry].label()
+        };
+        let atlas = match (s.uv, s.size) {
+            (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
+                let uvs = scene.lightmap_uvs(&geometry.receivers, set)?;
+                atlas::unwrap::existing(&geometry.receivers, uvs, r)
+            }
+            (_, size) => {
+                let options = UnwrapOptions {
+                    size,
+                    padding: s.padding,
+                    packing: s.packing,
+                };
+                let pb = progress_bar(run.progress, 0, "unwrap");
+                let report = |stage: &'static str, done: usize, total: Option<usize>| {
+                    pb.set_message(stage);
+                    pb.set_length(total.unwrap_or(done + 1) as u64);
+                    pb.set_position(done as u64);
+                };
+                let atlas = atlas::unwrap::unwrap_with_progress(
+                    &geometry.receivers,
+                    &options,
+                    diagonal,
+                    &report,
+                );
+                pb.finish_and_clear();
+                match atlas? {
+                    Ok(atlas) => atlas,
+                    Err(c) => {
+                        let page = match size {
+                            AtlasSize::TexelDensity { page_size, .. } => page_size,
+                            AtlasSize::Resolution(r) => r,
+                        };
+                        return Err(Error::Limit(format!(
+                            "{}: a chart of {}x{} texels does not fit a {page}x{page} page; --texel-density {:.4} or less fits it (or raise --page-size)",
+                            label(c.mesh),
+                            c.width,
+                            c.height,
+                            c.fitting_density
+                        )));
+                    }
+                }
+            }
+        };
+        timer.lap("unwrap");
+        let visibility_meshes: Vec<bool> = geometry
+            .receivers
+            .iter()
+            .map(|m| match (s.visibility, s.method) {
+                (VisibilityMode::Off, _) | (VisibilityMode::Auto, Method::Sheared) => false,
+                (VisibilityMode::All, _) => true,
+                (VisibilityMode::Auto, _) => {
+                    scene.material_reads_visibility(scene.instances[m.instance].geometry)
+                }
+            })
+            .collect();
+        let layer = visibility_meshes.iter().any(|&v| v);
+        // Pages are baked one at a time: the limit is per page.
+        let page = atlas
+            .pages
+            .iter()
+            .max_by_key(|p| p.width as u64 * p.height as u64);
+        let page = page.copied().unwrap_or(atlas::PageSize {
+            width: atlas.width,
+            height: atlas.height,
+        });
+        let need = estimated_bytes_with(page.width, page.height, s, layer);
+        if need > MAX_BAKE_BYTES {
+            return Err(Error::Limit(format!(
+                "a {}x{} atlas page needs about {:.1} GiB of memory to bake, more than the {} GiB limit; lower the resolution or the page size",
+                page.width,
+                page.height,
+                need as f64 / (1u64 << 30) as f64,
+                MAX_BAKE_BYTES >> 30
+            )));
+        }
+        let tracer = Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
+        timer.lap("bvh");
+        let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
+        let cross_seams = if s.seams == SeamMode::Stitch && atlas.pages.len() > 1 {
+            cross_page_seams(&geometry.receivers, &atlas, SMOOTH_DEGREES)
+        } else {
+            Vec::new()
+        };
+        Ok(Level {
+            geometry,
+            atlas,
+            tracer,
+            max_distance_world,
+            max_distance,
+            visibility_meshes,
+            cross_seams,
+        })
+    }
+
+    /// How many pages the atlas has.
+    pub fn page_count(&self) -> u32 {
+        self.atlas.pages.len() as u32
+    }
+
+    /// Texels per world unit.
+    pub fn texel_density(&self) -> f64 {
+        self.atlas.texels_per_unit / self.geometry.space.diagonal
+    }
+
+    /// Rasterizes page `page` and finds its receivers inside geometry.
+    pub fn page(
+        &self,
+        page: u32,
+        scene: &Scene,
+        s: &BakeSettings,
+        timer: &mut StageTimer,
+    ) -> Result<Page<'_>> {
+        let geometry = &self.geometry;
+        let atlas = self.atlas.page(page);
+        let receivers = atlas::rasterize(&geometry.receivers, &atlas);
+        if let (UvSource::Existing(set), Some((a, b))) = (s.uv, receivers.first_overlap) {
+            let name = |k: u32| {
+                scene.geometries[scene.instances[geometry.receivers[k as usize].instance].geometry]
+                    .label()
+            };
+            return Err(Error::option_conflict(
+                "uv",
+                format!(
+                    "TEXCOORD_{set} of {} and {} overlap ({} texels): existing UVs must be one shared, non-overlapping lightmap layout; generate them instead",
+                    name(a),
+                    name(b),
+                    receivers.overlapping_texels
+                ),
+            ));
+        }
+        if receivers.is_empty() && self.page_count() == 1 {
+            return Err(Error::Empty(
+                "no texel is covered: every baked triangle is degenerate".into(),
+            ));
+        }
+        // For the tracing passes' caches ([`atlas::order`]); no output changes.
+        let receivers = atlas::order::in_world_order(receivers);
+        timer.lap("rasterize");
+        let inside = if !s.fill_inside {
+            Some(vec![false; receivers.len()])
+        } else if s.method == Method::Adaptive {
+            // Its pre-pass's closest hits make the same test on the same rays.
+            None
+        } else {
+            let seed = page_seed(s.seed, page);
+            let inside =
+                validity::inside_geometry(&receivers, &self.tracer, self.max_distance, seed);
+            timer.lap("validity");
+            Some(inside)
+        };
+        Ok(Page {
+            level: self,
+            page,
+            atlas,
+            receivers,
+            inside,
+        })
+    }
+}

@@ -1,0 +1,253 @@
+//! The bake job: the one sequence every command runs.
+//!
+//! load -> [`Level`] (unwrap into pages, BVH, cross-page seams) -> per page
+//! ([`Page`]: rasterize, validity; [`Page::bake`]: the method's passes;
+//! [`Page::finish`]: the lightmap stage and encode) -> [`write`](fn@write) the GLB,
+//! each stage timed on the [`Job`]'s one [`StageTimer`] (a stage's laps
+//! over the pages added up in the report). The adaptive method has no
+//! validity stage: its pre-pass makes the same test on the same rays.
+//!
+//! In: a path or a loaded [`Scene`], validated [`BakeSettings`] and
+//! [`RunOptions`]. Out, by command:
+//!
+//! - [`bake`]: the output file and its [`Report`] (`aobake IN OUT`);
+//! - [`bake_shard`] and [`merge`]: one shard's partial, and the output
+//!   from a complete set ([`shard`](mod@shard); `--shard`, `aobake merge`);
+//! - [`bake_scene`] and [`bake_file`]: the output bytes and page 0's
+//!   intermediates ([`Baked`]; tests and tools);
+//! - `aobake report` (`crate::report`) builds one [`Level`] and bakes its
+//!   page many times through [`Level::page`], [`Page::bake`] and
+//!   [`Page::finish`].
+//!
+//! Only one page's working set lives at a time: a page's receivers and
+//! arrays are freed once it is encoded.
+//!
+//! - [`settings`]: what a bake is and how a run goes;
+//! - [`level`]: what every page shares ([`Level`]) and one page ([`Page`]);
+//! - [`page`](mod@page): a page's passes and output, and the write-back;
+//! - [`report`](mod@report): the `--report` JSON;
+//! - [`shard`](mod@shard): sharded bakes and their merge.
+
+pub mod level;
+pub mod page;
+pub mod report;
+pub mod settings;
+pub mod shard;
+
+pub use level::{Level, Page, page_seed};
+pub use page::{BakePasses, PageOutput, write};
+pub use report::{
+    AdaptiveReport, PageDone, PageReport, Report, ShearedReport, VisibilityReport, level_report,
+};
+pub use settings::{BakeSettings, Method, RunOptions, UvSource, VisibilityMode};
+pub use shard::{Merged, bake_shard, merge};
+
+use crate::atlas::{Atlas, Receivers};
+use crate::bake::Bake;
+use crate::bake::adaptive::AdaptiveStats;
+use crate::bake::sheared::ShearedStats;
+use crate::encode::Encoded;
+use crate::error::{Error, Result};
+use crate::file;
+use crate::geometry::BakeGeometry;
+use crate::gltf::{self, Scene};
+use crate::lightmap::Lightmap;
+use crate::stage::StageTimer;
+use std::path::Path;
+
+/// One bake of one scene: the scene, what the bake is, how the run goes,
+/// and the timer every stage laps on. Every command runs its stages
+/// through these methods, in this order: [`Job::level`], [`Job::pages`],
+/// [`Job::write`], [`Job::report`].
+pub struct Job<'a> {
+    pub scene: &'a Scene,
+    pub settings: &'a BakeSettings,
+    pub run: &'a RunOptions,
+    pub timer: StageTimer,
+}
+
+impl<'a> Job<'a> {
+    /// A job on a loaded scene; `timer` holds the stages so far (the load).
+    pub fn new(
+        scene: &'a Scene,
+        settings: &'a BakeSettings,
+        run: &'a RunOptions,
+        timer: StageTimer,
+    ) -> Job<'a> {
+        Job {
+            scene,
+            settings,
+            run,
+            timer,
+        }
+    }
+
+    /// Validates the settings, unwraps into pages and builds the BVH.
+    pub fn level(&mut self) -> Result<Level> {
+        Level::new(self.scene, self.settings, self.run, &mut self.timer)
+    }
+
+    /// Bakes `pages` of the level one after another: each is rasterized,
+    /// baked, run through the lightmap stage and encoded, handed to `keep`
+    /// (which may hold on to its intermediates; a bake's own path drops
+    /// them), and freed.
+    pub fn pages<'l>(
+        &mut self,
+        level: &'l Level,
+        pages: &[u32],
+        keep: &mut dyn FnMut(Page<'l>, BakePasses, PageOutput),
+    ) -> Result<Vec<PageDone>> {
+        let (s, run) = (self.settings, self.run);
+        let mut done = Vec::with_capacity(pages.len());
+        for &k in pages {
+            let page = level.page(k, self.scene, s, &mut self.timer)?;
+            let passes = page.bake(s, run, &mut self.timer)?;
+            let out = page.finish(&passes, s, run, &mut self.timer)?;
+            done.push(PageDone::new(
+                k,
+                page.receivers.len(),
+                passes.inside(&page),
+                &passes,
+                out.encoded.clone(),
+                out.seams,
+                s,
+            ));
+            keep(page, passes, out);
+        }
+        Ok(done)
+    }
+
+    /// The output GLB from every page's encoded images (`encoded[k]` is
+    /// page k's) and the warnings. `output_dir`: where it will be written.
+    pub fn write(
+        &mut self,
+        level: &Level,
+        encoded: &[&Encoded],
+        output_dir: Option<&Path>,
+    ) -> Result<(Vec<u8>, Vec<String>)> {
+        write(
+            self.scene,
+            level,
+            encoded,
+            self.settings,
+            output_dir,
+            &mut self.timer,
+        )
+    }
+
+    /// The report of the pages baked (`done`), with every stage the timer
+    /// saw (a stage's laps over the pages added up).
+    pub fn report(
+        self,
+        level: &Level,
+        done: &[PageDone],
+        warnings: Vec<String>,
+        input: Option<&Path>,
+    ) -> Report {
+        let mut report = level_report(level, done, self.settings, warnings);
+        if let Some(input) = input {
+            report.input = input.display().to_string();
+        }
+        report.total_seconds = self.timer.total();
+        report.stages = self.timer.into_merged_stages();
+        report
+    }
+}
+
+/// Every product of a bake: the output and page 0's intermediates (all of
+/// a one-page bake).
+pub struct Baked {
+    pub geometry: BakeGeometry,
+    /// Every page's charts.
+    pub atlas: Atlas,
+    pub receivers: Receivers,
+    pub bake: Bake,
+    /// Sheared method only.
+    pub sheared_stats: Option<ShearedStats>,
+    /// Adaptive method only.
+    pub adaptive_stats: Option<AdaptiveStats>,
+    pub lightmap: Lightmap,
+    pub encoded: Encoded,
+    pub glb: Vec<u8>,
+    pub report: Report,
+}
+
+/// Bakes `input` into `output` (written atomically; `input` is never
+/// touched): every page, in one process.
+pub fn bake(input: &Path, output: &Path, s: &BakeSettings, run: &RunOptions) -> Result<Report> {
+    s.validate()?;
+    check_output(input, output)?;
+    let mut timer = StageTimer::new();
+    let scene = gltf::load(input)?;
+    timer.lap("load");
+    let mut job = Job::new(&scene, s, run, timer);
+    let level = job.level()?;
+    let all: Vec<u32> = (0..level.page_count()).collect();
+    let done = job.pages(&level, &all, &mut |_, _, _| {})?;
+    let encoded: Vec<&Encoded> = done.iter().map(|d| &d.encoded).collect();
+    let (glb, warnings) = job.write(&level, &encoded, Some(file::parent_dir(output)))?;
+    file::write_atomic(output, &glb)?;
+    job.timer.lap("save");
+    Ok(job.report(&level, &done, warnings, Some(input)))
+}
+
+/// Refuses an output path that is the input file.
+pub fn check_output(input: &Path, output: &Path) -> Result<()> {
+    if file::same_file(input, output) {
+        return Err(Error::option_conflict(
+            "output",
+            format!(
+                "{} is the input file; choose another path (the input is never overwritten)",
+                output.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Loads `input` and bakes it quietly (the output's URIs stay relative to
+/// the input's directory).
+pub fn bake_file(input: &Path, s: &BakeSettings) -> Result<Baked> {
+    let mut timer = StageTimer::new();
+    let scene = gltf::load(input)?;
+    timer.lap("load");
+    bake_loaded(&scene, s, timer, Some(input))
+}
+
+/// Bakes a loaded scene quietly into lightmaps and the output GLB bytes.
+pub fn bake_scene(scene: &Scene, s: &BakeSettings) -> Result<Baked> {
+    bake_loaded(scene, s, StageTimer::new(), None)
+}
+
+fn bake_loaded(
+    scene: &Scene,
+    s: &BakeSettings,
+    timer: StageTimer,
+    input: Option<&Path>,
+) -> Result<Baked> {
+    let mut job = Job::new(scene, s, &RunOptions::QUIET, timer);
+    let level = job.level()?;
+    let all: Vec<u32> = (0..level.page_count()).collect();
+    let mut first = None;
+    let done = job.pages(&level, &all, &mut |page, passes, out| {
+        if page.page == 0 {
+            first = Some((page.receivers, passes, out));
+        }
+    })?;
+    let encoded: Vec<&Encoded> = done.iter().map(|d| &d.encoded).collect();
+    let (glb, warnings) = job.write(&level, &encoded, None)?;
+    let report = job.report(&level, &done, warnings, input);
+    let (receivers, passes, out) = first.expect("page 0 is baked");
+    Ok(Baked {
+        geometry: level.geometry,
+        atlas: level.atlas,
+        receivers,
+        bake: passes.bake,
+        sheared_stats: passes.sheared_stats,
+        adaptive_stats: passes.adaptive_stats,
+        lightmap: out.lightmap,
+        encoded: out.encoded,
+        glb,
+        report,
+    })
+}

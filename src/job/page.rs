@@ -1,0 +1,237 @@
+//! One page: the method's passes, then the lightmap stage and encode; and
+//! the write-back of every page's images into one GLB.
+//!
+//! In: a [`Page`] and the settings. Out: [`BakePasses`] (the method's
+//! results and figures), [`PageOutput`] (the page's float lightmap, its
+//! encoded images and seam figures; debug maps and EXR files written if
+//! the run asks), and from the encoded pages of a whole level the output
+//! GLB bytes ([`write`](fn@write)).
+
+use super::level::{Level, Page, page_seed};
+use crate::bake::adaptive::{self, AdaptiveStats};
+use crate::bake::sheared::{self, ShearedStats};
+use crate::bake::{Bake, BakeParams, mc, visibility};
+use crate::encode::{self, Encoded};
+use crate::error::{Error, Result};
+use crate::file;
+use crate::gltf::Scene;
+use crate::gltf::write::{self, BakeRecord, OutputOptions};
+use crate::job::settings::{BakeSettings, Method, RunOptions, UvSource};
+use crate::lightmap::seams::SeamReport;
+use crate::lightmap::{self, Lightmap, PageBake};
+use crate::stage::{StageTime, StageTimer, progress_bar};
+use std::path::{Path, PathBuf};
+
+/// What a method's passes over a page's receivers produced.
+pub struct BakePasses {
+    pub bake: Bake,
+    /// Sheared method only.
+    pub sheared_stats: Option<ShearedStats>,
+    /// Adaptive method only.
+    pub adaptive_stats: Option<AdaptiveStats>,
+    /// The method's own passes: `trace` (Monte Carlo), or `sparse pass` and
+    /// `filter pass` (sheared).
+    pub stages: Vec<StageTime>,
+}
+
+impl BakePasses {
+    /// Per receiver: inside geometry, from the validity stage or, when
+    /// the method found them itself, from its passes.
+    pub fn inside<'a>(&'a self, p: &'a Page) -> &'a [bool] {
+        match (&p.inside, &self.adaptive_stats) {
+            (Some(inside), _) => inside,
+            (None, Some(stats)) => &stats.inside,
+            (None, None) => &[],
+        }
+    }
+}
+
+/// What the lightmap stage and encode made of one page.
+pub struct PageOutput {
+    pub lightmap: Lightmap,
+    pub encoded: Encoded,
+    /// The seams before and after stitching (`--seams stitch`).
+    pub seams: Option<SeamReport>,
+}
+
+/// Page 0's files go into `dir` itself, page k's into `dir/page-k`.
+fn page_dir(dir: &Path, page: u32) -> PathBuf {
+    if page == 0 {
+        dir.to_path_buf()
+    } else {
+        dir.join(format!("page-{page}"))
+    }
+}
+
+impl Page<'_> {
+    /// Runs the method's passes over the page's receivers (`s` validated,
+    /// as by [`Level::new`]).
+    pub fn bake(
+        &self,
+        s: &BakeSettings,
+        run: &RunOptions,
+        timer: &mut StageTimer,
+    ) -> Result<BakePasses> {
+        let (receivers, tracer) = (&self.receivers, &self.level.tracer);
+        let params = BakeParams {
+            max_distance: self.level.max_distance,
+            seed: page_seed(s.seed, self.page),
+        };
+        let layer = self.level.bakes_visibility();
+        let first = timer.stages().len();
+        timer.restart();
+        let pb = progress_bar(run.progress, receivers.len() as u64, "baking");
+        let progress = |n| pb.inc(n);
+        let (bake, sheared_stats, adaptive_stats) = match s.method {
+            Method::Mc => {
+                let mut b = mc::bake(receivers, tracer, s.rays, &params, &progress);
+                timer.lap("trace");
+                if layer {
+                    b.visibility = Some(visibility::bake(receivers, tracer, s.rays, &params));
+                    timer.lap("visibility pass");
+                }
+                (b, None, None)
+            }
+            Method::Sheared => {
+                let (b, stats) =
+                    sheared::bake(receivers, tracer, &s.sheared, &params, timer, &progress)?;
+                (b, Some(stats), None)
+            }
+            Method::Adaptive => {
+                let (b, stats) = adaptive::bake(
+                    receivers,
+                    tracer,
+                    s.fill_inside,
+                    layer,
+                    &s.adaptive,
+                    &params,
+                    timer,
+                    &progress,
+                );
+                (b, None, Some(stats))
+            }
+        };
+        pb.finish_and_clear();
+        Ok(BakePasses {
+            bake,
+            sheared_stats,
+            adaptive_stats,
+            stages: timer.since(first).to_vec(),
+        })
+    }
+
+    /// The lightmap stage ([`lightmap::build`]) and encode of the page's
+    /// bake; writes its debug maps and EXR if the run asks (page 0's into
+    /// the directories given, page k's into their `page-k` subdirectories).
+    pub fn finish(
+        &self,
+        passes: &BakePasses,
+        s: &BakeSettings,
+        run: &RunOptions,
+        timer: &mut StageTimer,
+    ) -> Result<PageOutput> {
+        let level = self.level;
+        let debug_dir = run.debug_dir.as_ref().map(|d| page_dir(d, self.page));
+        if let Some(dir) = &debug_dir {
+            let maps = match (&passes.sheared_stats, &passes.adaptive_stats) {
+                (Some(stats), _) => stats.debug_maps(level.max_distance),
+                (_, Some(stats)) => stats.debug_maps(level.max_distance),
+                _ => Vec::new(),
+            };
+            if !maps.is_empty() {
+                encode::write_grey_maps(dir, &self.receivers, &maps)?;
+            }
+        }
+        let built = lightmap::build(
+            &PageBake {
+                page: self.page,
+                pages: &level.atlas.pages,
+                meshes: &level.geometry.receivers,
+                atlas: &self.atlas,
+                receivers: &self.receivers,
+                bake: &passes.bake,
+                inside: passes.inside(self),
+                cross_seams: &level.cross_seams,
+                tracer: &level.tracer,
+                max_distance: level.max_distance,
+                seed: s.seed,
+                diagonal: level.geometry.space.diagonal,
+            },
+            s.seams,
+            debug_dir.is_some(),
+            timer,
+        )?;
+        let lightmap = built.lightmap;
+        if let (Some(dir), Some(maps)) = (&debug_dir, built.seam_maps) {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            for (name, img) in ["seams_before", "seams_after"].into_iter().zip(maps) {
+                let png = encode::png(
+                    lightmap.width,
+                    lightmap.height,
+                    &img,
+                    image::ExtendedColorType::L8,
+                )?;
+                file::write_atomic(&dir.join(format!("{name}.png")), &png)?;
+            }
+        }
+        timer.restart();
+        let encoded = encode::encode(&lightmap, s.visibility_order)?;
+        if let Some(dir) = &run.exr_dir {
+            let dir = page_dir(dir, self.page);
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            encode::write_exr(&lightmap, &dir.join("lightmap.exr"))?;
+        }
+        timer.lap("encode");
+        Ok(PageOutput {
+            lightmap,
+            encoded,
+            seams: built.seams,
+        })
+    }
+}
+
+/// The output GLB of a level from every page's encoded images (`pages[k]`
+/// is page k's), with the scene's warnings and the writer's. `output_dir`:
+/// where the GLB will be written, so external URIs resolve from there.
+pub fn write(
+    scene: &Scene,
+    level: &Level,
+    pages: &[&Encoded],
+    s: &BakeSettings,
+    output_dir: Option<&Path>,
+    timer: &mut StageTimer,
+) -> Result<(Vec<u8>, Vec<String>)> {
+    timer.restart();
+    let options = OutputOptions {
+        record: BakeRecord {
+            method: s.method.name().to_string(),
+            rays: match s.method {
+                Method::Mc => s.rays,
+                Method::Sheared => s.sheared.sparse_rays,
+                Method::Adaptive => s.adaptive.quality,
+            },
+            seed: s.seed,
+            max_distance: level.max_distance_world,
+            width: level.atlas.width,
+            height: level.atlas.height,
+        },
+        occlusion: s.occlusion,
+        visibility_meshes: level.visibility_meshes.clone(),
+        existing_uv: match s.uv {
+            UvSource::Existing(set) => Some(set),
+            UvSource::Generate => None,
+        },
+        output_dir: output_dir.map(Path::to_path_buf),
+    };
+    let mut warnings = scene.warnings.clone();
+    let glb = write::build_glb(
+        scene,
+        &level.geometry,
+        &level.atlas,
+        pages,
+        &options,
+        &mut warnings,
+    )?;
+    timer.lap("write");
+    Ok((glb, warnings))
+}

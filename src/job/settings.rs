@@ -1,0 +1,496 @@
+//! Settings: what a bake is ([`BakeSettings`]) and how this run of it goes
+//! ([`RunOptions`]), each checked once.
+//!
+//! In: the caller's choices (the command line's flags, derived from these
+//! very fields with `clap`, or a library caller's fields). Out:
+//! [`BakeSettings`], whose [`BakeSettings::validate`] runs before any stage
+//! and whose JSON is a shard's fingerprint (everything in it decides the
+//! output bytes, nothing else does), [`RunOptions`] (progress bars and
+//! diagnostic files, which change no output byte), and [`estimated_bytes`],
+//! the memory check made once the atlas size is known. Defaults live here
+//! only ([`BakeSettings::DEFAULT`]); the command line shows them.
+//!
+//! Each field's doc comment is its `--help` line, so the help cannot drift
+//! from the code. Errors name a setting by its field here (`sparse_rays`);
+//! the command line shows the flag instead (`--sparse-rays`).
+
+use crate::atlas::{AtlasSize, Packing};
+use crate::bake::adaptive::AdaptiveOptions;
+use crate::bake::sheared::ShearedOptions;
+use crate::error::{Error, Result};
+use crate::gltf::write::OcclusionMode;
+use crate::lightmap::seams::SeamMode;
+use clap::{Arg, ArgAction, ArgMatches, Args, Command, FromArgMatches, ValueEnum};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// Memory a bake may use (checked against [`estimated_bytes`] before the
+/// per-texel arrays are allocated): the 24 GiB build machines keep room for
+/// the loaded scene and the BVH.
+pub const MAX_BAKE_BYTES: u64 = 16 << 30;
+
+/// Per atlas texel, an upper bound of what the output stages hold at once:
+/// receiver (texel, position, two normals, footprint, centre inside: 45 B), results (AO
+/// and 9 SH: 40 B), the float lightmap with its coverage (41 B), the
+/// dilation map (4 B), BFS queue and encoded image rows (~24 B).
+const BYTES_PER_TEXEL: u64 = 160;
+
+/// Per atlas texel, what every method holds while it bakes: the receiver
+/// (45 B) and its results (40 B). A method's working arrays come on top of
+/// these, and are freed before the output stages.
+const BAKE_BYTES_PER_TEXEL: u64 = 45 + 40;
+
+/// Default atlas page edge in texels.
+pub const DEFAULT_RESOLUTION: u32 = 1024;
+
+/// Default largest page edge of a `--texel-density` bake (a common engine
+/// and GPU texture limit).
+pub const DEFAULT_PAGE_SIZE: u32 = 4096;
+
+/// Default Monte Carlo rays per texel.
+pub const DEFAULT_RAYS: u32 = 256;
+
+/// Default max occluder distance as a fraction of the scene's bounding-box diagonal.
+pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
+
+/// Baking method: `Adaptive` (ray counts per texel from the occluders'
+/// depth and an axis-aligned filter of the integrated values,
+/// [`crate::bake::adaptive`]), `Mc` (brute-force Monte Carlo,
+/// [`crate::bake::mc`]) or `Sheared` (sparse rays shared between texels by
+/// the sheared filter of Egan et al. 2011, [`crate::bake::sheared`]; named
+/// `filtered` before the adaptive method, which the command line still
+/// accepts).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    #[value(alias = "filtered")]
+    Sheared,
+    Mc,
+    Adaptive,
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Sheared => "sheared",
+            Method::Mc => "mc",
+            Method::Adaptive => "adaptive",
+        }
+    }
+}
+
+/// Which primitives get the visibility layer (`--visibility`): `Auto`,
+/// where the primitive's material can use it
+/// (`gltf::Scene::material_reads_visibility`: a normal map, a roughness
+/// below [`crate::gltf::scene::GLOSSY_ROUGHNESS`] or a clearcoat; a scene
+/// with none bakes no layer), `All` baked primitives, or `Off`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum VisibilityMode {
+    #[default]
+    Auto,
+    All,
+    Off,
+}
+
+/// Where the lightmap UVs come from (`--uv`, `--uv-set`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum UvSource {
+    /// Unwrap every baked placement into a new atlas (new TEXCOORD_n).
+    #[default]
+    Generate,
+    /// Reuse `TEXCOORD_<set>` as it is.
+    Existing(usize),
+}
+
+/// What a bake is: every setting that decides the output's bytes. Two
+/// bakes of one input with equal `BakeSettings` write the same file (a
+/// shard's fingerprint is this struct's JSON).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Args)]
+pub struct BakeSettings {
+    #[command(flatten)]
+    pub size: AtlasSize,
+    /// Empty texels around each chart
+    #[arg(long, value_name = "P", default_value_t = Self::DEFAULT.padding)]
+    pub padding: u32,
+    /// Chart packing
+    #[arg(long, value_enum, default_value_t = Self::DEFAULT.packing)]
+    pub packing: Packing,
+    #[command(flatten)]
+    pub uv: UvSource,
+    /// Baking method: adaptive (ray counts per texel from the occluders'
+    /// depth, an axis-aligned filter of the integrated values), mc
+    /// (brute-force Monte Carlo) or sheared (also `filtered`: the sheared
+    /// filter of Egan et al. 2011)
+    #[arg(long, value_enum, default_value_t = Self::DEFAULT.method)]
+    pub method: Method,
+    /// Monte Carlo (mc): rays per texel
+    #[arg(long, value_name = "N", default_value_t = Self::DEFAULT.rays)]
+    pub rays: u32,
+    /// Options of the sheared method.
+    #[command(flatten)]
+    pub sheared: ShearedOptions,
+    /// Options of the adaptive method.
+    #[command(flatten)]
+    pub adaptive: AdaptiveOptions,
+    /// Occluders farther than this (world units) do not count [default: 0.1
+    /// x the scene's bounding-box diagonal]
+    #[arg(long, value_name = "D")]
+    pub max_distance: Option<f64>,
+    /// Random seed: the same seed gives the same output on any thread count
+    #[arg(long, value_name = "S", default_value_t = Self::DEFAULT.seed)]
+    pub seed: u64,
+    /// A material's existing occlusionTexture is kept or replaced by the
+    /// baked AO
+    #[arg(long, value_enum, default_value_t = Self::DEFAULT.occlusion)]
+    pub occlusion: OcclusionMode,
+    /// Bake texels inside or behind single-sided geometry as they are
+    /// instead of filling them from their nearest valid texel
+    #[arg(long = "no-inside-fill", action = ArgAction::SetFalse)]
+    pub fill_inside: bool,
+    /// The visibility layer (SH of the visibility itself), for normal maps
+    /// and glossy lobes: auto bakes it for primitives whose material has a
+    /// normalTexture, a roughnessFactor below 0.4 or a clearcoat
+    #[arg(long, value_enum, default_value_t = Self::DEFAULT.visibility)]
+    pub visibility: VisibilityMode,
+    /// SH order of the visibility layer: 3 (16 coefficients) or 2 (9)
+    #[arg(long, value_name = "2|3", default_value_t = Self::DEFAULT.visibility_order)]
+    pub visibility_order: u32,
+    /// Smooth seams (vertex normals within 10 degrees): stitched by least
+    /// squares, or left as baked
+    #[arg(long, value_enum, default_value_t = Self::DEFAULT.seams)]
+    pub seams: SeamMode,
+}
+
+impl BakeSettings {
+    /// Every setting's default.
+    pub const DEFAULT: BakeSettings = BakeSettings {
+        size: AtlasSize::Resolution(DEFAULT_RESOLUTION),
+        padding: 2,
+        packing: Packing::Fast,
+        uv: UvSource::Generate,
+        // Adaptive: measured against 256-ray Monte Carlo on five scenes
+        // in the comparison table of `docs/method-adaptive.md`.
+        method: Method::Adaptive,
+        rays: DEFAULT_RAYS,
+        sheared: ShearedOptions::DEFAULT,
+        adaptive: AdaptiveOptions::DEFAULT,
+        max_distance: None,
+        seed: 0,
+        occlusion: OcclusionMode::Keep,
+        fill_inside: true,
+        visibility: VisibilityMode::Auto,
+        visibility_order: 3,
+        seams: SeamMode::Stitch,
+    };
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        BakeSettings::DEFAULT
+    }
+}
+
+/// How this run of a bake goes: nothing here changes an output byte.
+#[derive(Clone, Debug, PartialEq, Args)]
+pub struct RunOptions {
+    /// No progress bars and no warnings
+    #[arg(short = 'q', long = "quiet", action = ArgAction::SetFalse)]
+    pub progress: bool,
+    /// Write diagnostic PNG maps here: seams_before/after (AO jump at
+    /// seams); adaptive: z_min, rays_per_texel, filter_sigma; sheared:
+    /// brute_force_fraction, z_min, neighbours, sparse_ao (page k's in
+    /// DIR/page-k)
+    #[arg(long, value_name = "DIR")]
+    pub debug_dir: Option<PathBuf>,
+    /// Also write DIR/lightmap.exr (float ao, sh0..sh8, v0..v15; page k's in
+    /// DIR/page-k)
+    #[arg(long = "exr", value_name = "DIR")]
+    pub exr_dir: Option<PathBuf>,
+}
+
+impl RunOptions {
+    /// No progress bars, no files besides the output (tests and tools).
+    pub const QUIET: RunOptions = RunOptions {
+        progress: false,
+        debug_dir: None,
+        exr_dir: None,
+    };
+}
+
+impl Default for RunOptions {
+    /// Progress bars (drawn only when stderr is a terminal), no diagnostic
+    /// files.
+    fn default() -> Self {
+        RunOptions {
+            progress: true,
+            debug_dir: None,
+            exr_dir: None,
+        }
+    }
+}
+
+impl BakeSettings {
+    /// Checks every setting that can be checked without the scene: the
+    /// job calls it before any stage, so a bad option fails at once.
+    pub fn validate(&self) -> Result<()> {
+        // Refused whichever method reads it.
+        if self.rays == 0 {
+            return Err(Error::option("rays", "must be at least 1"));
+        }
+        match self.method {
+            Method::Mc => {}
+            Method::Sheared => self.sheared.validate()?,
+            Method::Adaptive => self.adaptive.validate()?,
+        }
+        if !matches!(self.visibility_order, 2 | 3) {
+            return Err(Error::option(
+                "visibility_order",
+                format!("{} must be 2 or 3", self.visibility_order),
+            ));
+        }
+        if self.visibility == VisibilityMode::All && self.method == Method::Sheared {
+            return Err(Error::option_conflict(
+                "visibility",
+                "the sheared method does not bake the visibility layer; use --method adaptive or mc, or --visibility off",
+            ));
+        }
+        crate::atlas::unwrap::check_size(self.size)?;
+        if let Some(d) = self.max_distance
+            && !(d.is_finite() && d > 0.0)
+        {
+            return Err(Error::option(
+                "max_distance",
+                format!("{d} must be finite and > 0"),
+            ));
+        }
+        if let (UvSource::Existing(_), AtlasSize::TexelDensity { .. }) = (self.uv, self.size) {
+            return Err(Error::option_conflict(
+                "texel_density",
+                "needs generated UVs; give a resolution with existing UVs",
+            ));
+        }
+        Ok(())
+    }
+}
+
+// The atlas size and the UV source are enums whose variants carry values,
+// so their flags are written out here rather than derived: `--resolution`
+// or `--texel-density` with `--page-size`; `--uv` with `--uv-set`.
+
+fn matched<T: Clone + Send + Sync + 'static>(m: &ArgMatches, id: &str) -> Option<T> {
+    m.try_get_one::<T>(id).ok().flatten().cloned()
+}
+
+impl Args for AtlasSize {
+    fn augment_args(cmd: Command) -> Command {
+        cmd.arg(
+            Arg::new("resolution")
+                .long("resolution")
+                .value_name("N")
+                .value_parser(clap::value_parser!(u32))
+                .default_value(DEFAULT_RESOLUTION.to_string())
+                .conflicts_with("texel_density")
+                .help("Atlas page edge in texels, the densest fit on one page"),
+        )
+        .arg(
+            Arg::new("texel_density")
+                .long("texel-density")
+                .value_name("T")
+                .value_parser(clap::value_parser!(f64))
+                .help("Texels per world unit instead, on as many pages as the charts need"),
+        )
+        .arg(
+            Arg::new("page_size")
+                .long("page-size")
+                .value_name("E")
+                .value_parser(clap::value_parser!(u32))
+                .default_value(DEFAULT_PAGE_SIZE.to_string())
+                .help("With --texel-density: the largest page edge in texels (the last page may be smaller)"),
+        )
+    }
+
+    fn augment_args_for_update(cmd: Command) -> Command {
+        Self::augment_args(cmd)
+    }
+}
+
+impl FromArgMatches for AtlasSize {
+    fn from_arg_matches(m: &ArgMatches) -> std::result::Result<Self, clap::Error> {
+        Ok(match matched::<f64>(m, "texel_density") {
+            Some(density) => AtlasSize::TexelDensity {
+                density,
+                page_size: matched(m, "page_size").unwrap_or(DEFAULT_PAGE_SIZE),
+            },
+            None => AtlasSize::Resolution(matched(m, "resolution").unwrap_or(DEFAULT_RESOLUTION)),
+        })
+    }
+
+    fn update_from_arg_matches(&mut self, m: &ArgMatches) -> std::result::Result<(), clap::Error> {
+        *self = Self::from_arg_matches(m)?;
+        Ok(())
+    }
+}
+
+impl Args for UvSource {
+    fn augment_args(cmd: Command) -> Command {
+        cmd.arg(
+            Arg::new("uv")
+                .long("uv")
+                .value_name("SOURCE")
+                .value_parser(["generate", "existing"])
+                .default_value("generate")
+                .help("Lightmap UVs: generate a new atlas (a new TEXCOORD_n), or reuse the set --uv-set"),
+        )
+        .arg(
+            Arg::new("uv_set")
+                .long("uv-set")
+                .value_name("N")
+                .value_parser(clap::value_parser!(usize))
+                .default_value("1")
+                .help("The TEXCOORD set that --uv existing reuses"),
+        )
+    }
+
+    fn augment_args_for_update(cmd: Command) -> Command {
+        Self::augment_args(cmd)
+    }
+}
+
+impl FromArgMatches for UvSource {
+    fn from_arg_matches(m: &ArgMatches) -> std::result::Result<Self, clap::Error> {
+        Ok(match matched::<String>(m, "uv").as_deref() {
+            Some("existing") => UvSource::Existing(matched(m, "uv_set").unwrap_or(1)),
+            _ => UvSource::Generate,
+        })
+    }
+
+    fn update_from_arg_matches(&mut self, m: &ArgMatches) -> std::result::Result<(), clap::Error> {
+        *self = Self::from_arg_matches(m)?;
+        Ok(())
+    }
+}
+
+/// Memory estimate of baking a `width` x `height` atlas with settings `s`
+/// (every texel counted as covered: the worst case): the larger of the bake
+/// stage (receivers, results and the method's working arrays) and the
+/// output stages (with what the method keeps for the report and debug
+/// maps). Measured peak RSS, Cornell box at 4096 x 3594, 16 rays: 2.09 GB
+/// (`mc`) and 2.24 GB (`adaptive`), under this estimate's 2.36 and 2.71 GB.
+pub fn estimated_bytes(width: u32, height: u32, s: &BakeSettings) -> u64 {
+    estimated_bytes_with(width, height, s, s.visibility == VisibilityMode::All)
+}
+
+/// Per atlas texel, what the visibility layer adds to either stage: its
+/// result (16 floats) and, in the bake, the filter's row pass and shares
+/// (2 x 68 B); in the output stages, the float layer (64 B) beside it.
+pub const VISIBILITY_BYTES_PER_TEXEL: u64 = 64 + 2 * 68;
+
+/// [`estimated_bytes`], knowing whether the scene bakes the visibility
+/// layer (`--visibility auto` decides from its materials).
+pub fn estimated_bytes_with(width: u32, height: u32, s: &BakeSettings, layer: bool) -> u64 {
+    let texels = width as u64 * height as u64;
+    let layer = if layer { VISIBILITY_BYTES_PER_TEXEL } else { 0 };
+    let (working, kept) = match s.method {
+        Method::Mc => (0, 0),
+        // Counted as held throughout (not measured).
+        Method::Sheared => (s.sheared.bytes_per_texel(), s.sheared.bytes_per_texel()),
+        Method::Adaptive => (
+            s.adaptive.bytes_per_texel(),
+            AdaptiveOptions::KEPT_BYTES_PER_TEXEL,
+        ),
+    };
+    texels * ((BAKE_BYTES_PER_TEXEL + working).max(BYTES_PER_TEXEL + kept) + layer)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_method_default_fits_an_8192_page() {
+        for method in [Method::Mc, Method::Adaptive] {
+            let s = BakeSettings {
+                method,
+                ..BakeSettings::default()
+            };
+            let need = estimated_bytes(8192, 8192, &s);
+            assert!(need <= MAX_BAKE_BYTES, "{method:?}: {need}");
+            // ... and 16000^2 does not.
+            assert!(estimated_bytes(16000, 16000, &s) > MAX_BAKE_BYTES);
+        }
+    }
+
+    #[test]
+    fn the_estimate_is_the_larger_stage_not_their_sum() {
+        let mc = BakeSettings {
+            method: Method::Mc,
+            ..BakeSettings::default()
+        };
+        let adaptive = BakeSettings {
+            method: Method::Adaptive,
+            ..BakeSettings::default()
+        };
+        let per_texel = |s: &BakeSettings| estimated_bytes(1000, 1000, s) / 1_000_000;
+        assert_eq!(per_texel(&mc), BYTES_PER_TEXEL);
+        let working = adaptive.adaptive.bytes_per_texel();
+        assert_eq!(
+            per_texel(&adaptive),
+            (BAKE_BYTES_PER_TEXEL + working)
+                .max(BYTES_PER_TEXEL + AdaptiveOptions::KEPT_BYTES_PER_TEXEL)
+        );
+        assert!(per_texel(&adaptive) < BYTES_PER_TEXEL + working);
+    }
+
+    #[test]
+    fn the_flags_parse_into_the_library_settings() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            s: BakeSettings,
+            #[command(flatten)]
+            run: RunOptions,
+        }
+        use clap::Parser;
+        let parse = |args: &[&str]| {
+            Cli::try_parse_from(std::iter::once("aobake").chain(args.iter().copied()))
+        };
+        let none = parse(&[]).unwrap();
+        assert_eq!(none.s, BakeSettings::DEFAULT);
+        assert_eq!(none.run, RunOptions::default());
+        let some = parse(&[
+            "--texel-density",
+            "28",
+            "--page-size",
+            "1024",
+            "--uv",
+            "existing",
+            "--uv-set",
+            "2",
+            "--method",
+            "filtered",
+            "--no-inside-fill",
+            "--omega-v",
+            "3",
+            "--mean-rays",
+            "64",
+            "-q",
+        ])
+        .unwrap();
+        assert_eq!(
+            some.s.size,
+            AtlasSize::TexelDensity {
+                density: 28.0,
+                page_size: 1024
+            }
+        );
+        assert_eq!(some.s.uv, UvSource::Existing(2));
+        assert_eq!(some.s.method, Method::Sheared);
+        assert!(!some.s.fill_inside);
+        assert_eq!(some.s.sheared.omega_v_max, 3.0);
+        assert_eq!(some.s.adaptive.mean_rays, 64);
+        assert_eq!(some.s.adaptive.pre_rays, AdaptiveOptions::DEFAULT.pre_rays);
+        assert!(!some.run.progress);
+        assert!(parse(&["--resolution", "64", "--texel-density", "3"]).is_err());
+    }
+}

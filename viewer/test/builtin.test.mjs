@@ -1,0 +1,54 @@
+// `aobake view` without --viewer-dir, run from a directory that is not the
+// checkout: the page and three.js are served from the copy built into the
+// binary, as for an installed `aobake` (`cargo install --path .`; .ci/run
+// runs this file against one).
+//
+// Run: AOBAKE_BIN=path/to/aobake node --test test/builtin.test.mjs
+
+import { after, before, test } from 'node:test';
+import assert from 'node:assert/strict';
+import { readFileSync } from 'node:fs';
+import { join } from 'node:path';
+import { bake, launch, open, repoDir, serve, tempDir, viewerDir } from './harness.mjs';
+
+const dir = tempDir();
+let browser;
+let server;
+
+before(async () => {
+  const baked = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell.glb'),
+    ['--resolution', '128', '--rays', '16']);
+  server = await serve(baked, { builtIn: true, cwd: dir });
+  browser = await launch();
+});
+
+after(async () => {
+  await browser?.close();
+  server?.stop();
+});
+
+test('the built-in page loads the model, relights it and draws', async () => {
+  const page = await open(browser, server.url);
+  const status = await page.evaluate(() => window.aobakeViewer.status());
+  assert.equal(status.level, 'info', status.message);
+  assert.ok(status.baked > 0, 'baked primitives found');
+  assert.deepEqual(page.errors, []);
+  await page.evaluate(() => window.aobakeViewer.setEnvironment('white'));
+  const png = await page.locator('canvas').screenshot();
+  // A drawn frame: not one colour.
+  const distinct = new Set();
+  for (let i = 0; i < png.length; i += 97) distinct.add(png[i]);
+  assert.ok(distinct.size > 8, `canvas drew ${distinct.size} distinct byte values`);
+  await page.close();
+});
+
+test('the built-in files are this checkout\'s, and nothing else is served', async () => {
+  const base = new URL(server.url).origin;
+  for (const f of ['viewer.js', 'aobake-lightmap.js', 'vendor/three/build/three.module.js']) {
+    const got = Buffer.from(await (await fetch(`${base}/${f}`)).arrayBuffer());
+    assert.ok(got.equals(readFileSync(join(viewerDir, f))), `${f} differs from viewer/${f}`);
+  }
+  for (const f of ['package.json', '../Cargo.toml', 'node_modules/three/package.json', 'test/harness.mjs']) {
+    assert.equal((await fetch(`${base}/${f}`)).status, 404, f);
+  }
+});
