@@ -174,6 +174,59 @@ pub fn encode(lm: &Lightmap, visibility_order: u32) -> Result<Encoded> {
     })
 }
 
+/// The images as an engine reads them: every PNG decoded, each 8-bit
+/// channel mapped back through its scale and offset (`c_i = scale_i x
+/// channel_i / 255 + offset_i`, AO = channel / 255). The inverse of
+/// [`encode`] up to 8-bit quantization; `covered` is left empty.
+pub fn decode(e: &Encoded) -> Result<Lightmap> {
+    let read = |png: &[u8]| -> Result<image::DynamicImage> {
+        image::load_from_memory_with_format(png, image::ImageFormat::Png)
+            .map_err(|err| Error::Encode(format!("an encoded PNG does not decode: {err}")))
+    };
+    let ao = read(&e.occlusion_png)?.into_luma8();
+    let (width, height) = ao.dimensions();
+    let sh_images = e
+        .sh_png
+        .iter()
+        .map(|p| Ok(read(p)?.into_rgba8().into_raw()))
+        .collect::<Result<Vec<_>>>()?;
+    let n = (width * height) as usize;
+    let unit = |b: u8| b as f32 / 255.0;
+    let sh = (0..n)
+        .map(|t| {
+            std::array::from_fn(|i| {
+                e.sh_scale[i] * unit(sh_images[i / 4][t * 4 + i % 4]) + e.sh_offset[i]
+            })
+        })
+        .collect();
+    let visibility = match &e.visibility {
+        Some(v) => {
+            let images = (v.png.iter())
+                .map(|p| Ok(read(p)?.into_rgba8().into_raw()))
+                .collect::<Result<Vec<_>>>()?;
+            Some(
+                (0..n)
+                    .map(|t| {
+                        std::array::from_fn(|i| match v.scale.get(i) {
+                            Some(&s) => s * unit(images[i / 4][t * 4 + i % 4]) + v.offset[i],
+                            None => 0.0,
+                        })
+                    })
+                    .collect(),
+            )
+        }
+        None => None,
+    };
+    Ok(Lightmap {
+        width,
+        height,
+        ao: ao.into_raw().into_iter().map(unit).collect(),
+        sh,
+        covered: Vec::new(),
+        visibility,
+    })
+}
+
 /// Writes `ao` and `sh0`..`sh8` as 32-bit float channels of one EXR layer.
 pub fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
     use exr::prelude::*;
@@ -231,5 +284,52 @@ mod tests {
         }
         let (s, o) = sh_range(&[[0.3; SH_COUNT]]);
         assert!(s.iter().all(|&v| v == 0.0) && o.iter().all(|&v| (v - 0.3).abs() < 1e-7));
+    }
+
+    #[test]
+    fn decode_inverts_encode_within_half_a_step() {
+        let (w, h) = (5u32, 3u32);
+        let n = (w * h) as usize;
+        let value =
+            |t: usize, i: usize| ((t * 7 + i * 3) % 11) as f32 / 10.0 - 0.4 * (i % 2) as f32;
+        let lm = Lightmap {
+            width: w,
+            height: h,
+            ao: (0..n).map(|t| t as f32 / n as f32).collect(),
+            sh: (0..n)
+                .map(|t| std::array::from_fn(|i| value(t, i)))
+                .collect(),
+            covered: vec![true; n],
+            visibility: Some(
+                (0..n)
+                    .map(|t| std::array::from_fn(|i| value(t, i + 1)))
+                    .collect(),
+            ),
+        };
+        for order in [2, 3] {
+            let back = decode(&encode(&lm, order).unwrap()).unwrap();
+            assert_eq!((back.width, back.height), (w, h));
+            let e = encode(&lm, order).unwrap();
+            for t in 0..n {
+                assert!((back.ao[t] - lm.ao[t]).abs() <= 0.5 / 255.0 + 1e-6);
+                for i in 0..SH_COUNT {
+                    let step = e.sh_scale[i] / 255.0;
+                    assert!((back.sh[t][i] - lm.sh[t][i]).abs() <= 0.5 * step + 1e-6);
+                }
+                let (v, bv) = (
+                    &lm.visibility.as_ref().unwrap()[t],
+                    &back.visibility.as_ref().unwrap()[t],
+                );
+                let count = ((order + 1) * (order + 1)) as usize;
+                for i in 0..VIS_COUNT {
+                    if i < count {
+                        let step = e.visibility.as_ref().unwrap().scale[i] / 255.0;
+                        assert!((bv[i] - v[i]).abs() <= 0.5 * step + 1e-6);
+                    } else {
+                        assert_eq!(bv[i], 0.0);
+                    }
+                }
+            }
+        }
     }
 }

@@ -17,6 +17,7 @@ fn small(budgets: &str, reference_rays: u32, stability_rays: u32) -> ReportSetti
         seed: 3,
         max_distance: None,
         stability_rays,
+        engine_view_points: 2000,
         include_defaults: true,
         progress: false,
     }
@@ -53,6 +54,16 @@ fn an_open_plane_has_zero_error_in_every_run() {
     // (Monte Carlo and adaptive through the control variate).
     for run in &r.runs {
         assert!(run.sh_rmse < 1e-6, "{}: SH RMSE {}", run.label, run.sh_rmse);
+    }
+    // Where the engine reads, too: the written textures looked up at 2000
+    // surface points equal the open hemisphere's AO = 1 and SH, at chart
+    // borders as inside.
+    for run in &r.runs {
+        let e = run.engine_view.expect("measured");
+        assert_eq!(e.all.points, 2000, "{}", run.label);
+        assert!(e.border.points > 0, "{}", run.label);
+        assert!(e.all.ao_rmse < 1e-6, "{}: {e:?}", run.label);
+        assert!(e.all.sh_rmse < 1e-5, "{}: {e:?}", run.label);
     }
     // A zero target error: no equal-error comparison, and still a report.
     assert!(r.equal_error.is_none());
@@ -219,6 +230,7 @@ fn report_works_on_every_bakeable_shared_scene() {
             resolution,
             include_defaults: false,
             stability_rays: if resolution <= 256 { 4 } else { 0 },
+            engine_view_points: 500,
             ..small("mc:4,filtered:4:2", 16, 0)
         };
         let sweep = report::sweep(&scene, name, StageTimer::new(), &s)

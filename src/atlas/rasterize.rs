@@ -81,14 +81,47 @@ impl Receivers {
     }
 }
 
-/// A triangle ready to rasterize.
-struct RasterTri {
-    mesh: u32,
-    uv: [Vec2; 3],
-    pos: [Vec3; 3],
-    nrm: Option<[Vec3; 3]>,
-    geo: Vec3,
-    footprint: f32,
+/// A triangle of a page, ready to rasterize or sample: its corners in
+/// texels and in bake space.
+#[derive(Clone, Debug)]
+pub struct SurfaceTri {
+    /// Receiver mesh index.
+    pub mesh: u32,
+    /// Corners in texel units of the page.
+    pub uv: [Vec2; 3],
+    pub pos: [Vec3; 3],
+    pub nrm: Option<[Vec3; 3]>,
+    /// Unit geometric normal (front face, mirroring undone).
+    pub geo: Vec3,
+    /// World size of a texel on it, bake units.
+    pub footprint: f32,
+}
+
+impl SurfaceTri {
+    /// The surface at barycentrics `b`: position, unit shading normal
+    /// (interpolated, or geometric where the normals are missing or
+    /// cancel) and the geometric normal on its side.
+    pub fn at(&self, b: [f32; 3]) -> (Vec3, Vec3, Vec3) {
+        let pos = self.pos[0] * b[0] + self.pos[1] * b[1] + self.pos[2] * b[2];
+        let n = self
+            .nrm
+            .map(|n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or_zero())
+            .filter(|n| n.length_squared() > 0.5)
+            .unwrap_or(self.geo);
+        let geo = if self.geo.dot(n) < 0.0 {
+            -self.geo
+        } else {
+            self.geo
+        };
+        (pos, n, geo)
+    }
+
+    /// Bake-space area.
+    pub fn area(&self) -> f32 {
+        0.5 * (self.pos[1] - self.pos[0])
+            .cross(self.pos[2] - self.pos[0])
+            .length()
+    }
 }
 
 /// Closest point of triangle abc to p in 2D: (barycentrics, squared distance).
@@ -150,7 +183,9 @@ fn inside(p: Vec2, t: &[Vec2; 3]) -> bool {
     (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
 }
 
-fn build_triangles(meshes: &[ReceiverMesh], atlas: &Atlas) -> Vec<RasterTri> {
+/// The non-degenerate triangles of `atlas`'s charts (one page's atlas:
+/// [`Atlas::page`]), in mesh and triangle order.
+pub fn surface_triangles(meshes: &[ReceiverMesh], atlas: &Atlas) -> Vec<SurfaceTri> {
     let (w, h) = (atlas.width as f32, atlas.height as f32);
     let mut tris = Vec::new();
     for (mi, (m, c)) in meshes.iter().zip(&atlas.meshes).enumerate() {
@@ -173,7 +208,7 @@ fn build_triangles(meshes: &[ReceiverMesh], atlas: &Atlas) -> Vec<RasterTri> {
                 geo = -geo;
             }
             let nrm = m.normals.as_ref().map(|n| src.map(|i| Vec3::from(n[i])));
-            tris.push(RasterTri {
+            tris.push(SurfaceTri {
                 mesh: mi as u32,
                 uv,
                 pos,
@@ -188,7 +223,7 @@ fn build_triangles(meshes: &[ReceiverMesh], atlas: &Atlas) -> Vec<RasterTri> {
 
 /// Finds the receiver points of every covered texel.
 pub fn rasterize(meshes: &[ReceiverMesh], atlas: &Atlas) -> Receivers {
-    let tris = build_triangles(meshes, atlas);
+    let tris = surface_triangles(meshes, atlas);
     let (w, h) = (atlas.width, atlas.height);
     let bands = h.div_ceil(BAND_ROWS) as usize;
     // Bin triangles by band of rows (ascending triangle order inside a band).
@@ -225,7 +260,7 @@ pub fn rasterize(meshes: &[ReceiverMesh], atlas: &Atlas) -> Receivers {
     out
 }
 
-fn rasterize_band(tris: &[RasterTri], list: &[u32], band: u32, w: u32, h: u32) -> Receivers {
+fn rasterize_band(tris: &[SurfaceTri], list: &[u32], band: u32, w: u32, h: u32) -> Receivers {
     let y0 = band * BAND_ROWS;
     let y1 = (y0 + BAND_ROWS).min(h);
     let rows = (y1 - y0) as usize;
@@ -268,13 +303,7 @@ fn rasterize_band(tris: &[RasterTri], list: &[u32], band: u32, w: u32, h: u32) -
             continue;
         }
         let t = &tris[ti as usize];
-        let pos = t.pos[0] * b[0] + t.pos[1] * b[1] + t.pos[2] * b[2];
-        let n = t
-            .nrm
-            .map(|n| (n[0] * b[0] + n[1] * b[1] + n[2] * b[2]).normalize_or_zero())
-            .filter(|n| n.length_squared() > 0.5)
-            .unwrap_or(t.geo);
-        let geo = if t.geo.dot(n) < 0.0 { -t.geo } else { t.geo };
+        let (pos, n, geo) = t.at(b);
         let (x, y) = (i % w as usize, i / w as usize + y0 as usize);
         out.texel.push((y * w as usize + x) as u32);
         out.position.push(pos);

@@ -197,6 +197,22 @@ impl Level {
         self.atlas.pages.len() as u32
     }
 
+    /// Per page, the bake-space area of the triangles on it.
+    pub fn page_surface_areas(&self) -> Vec<f64> {
+        let mut area = vec![0.0; self.atlas.pages.len()];
+        for (m, c) in self.geometry.receivers.iter().zip(&self.atlas.meshes) {
+            for (t, &p) in c.triangles.chunks_exact(3).zip(&c.triangle_page) {
+                let [a, b, d] = [0, 1, 2]
+                    .map(|k| glam::Vec3::from(m.positions[c.xref[t[k] as usize] as usize]));
+                let a2 = (b - a).cross(d - a).length() as f64;
+                if a2.is_finite() {
+                    area[p as usize] += 0.5 * a2;
+                }
+            }
+        }
+        area
+    }
+
     /// Texels per world unit.
     pub fn texel_density(&self) -> f64 {
         self.atlas.texels_per_unit / self.geometry.space.diagonal

@@ -108,8 +108,7 @@ impl<'a> Job<'a> {
                 page.receivers.len(),
                 passes.inside(&page),
                 &passes,
-                out.encoded.clone(),
-                out.seams,
+                &out,
                 s,
             ));
             keep(page, passes, out);

@@ -17,6 +17,7 @@ use crate::file;
 use crate::gltf::Scene;
 use crate::gltf::write::{self, BakeRecord, OutputOptions};
 use crate::job::settings::{BakeSettings, Method, RunOptions, UvSource};
+use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
 use crate::lightmap::{self, Lightmap, PageBake};
 use crate::stage::{StageTime, StageTimer, progress_bar};
@@ -52,7 +53,12 @@ pub struct PageOutput {
     pub encoded: Encoded,
     /// The seams before and after stitching (`--seams stitch`).
     pub seams: Option<SeamReport>,
+    /// The engine-view error (`--engine-view-points`).
+    pub engine_view: Option<EngineView>,
 }
+
+/// Mixed into the seed of the engine-view points and reference rays.
+const ENGINE_VIEW_SEED: u64 = 0xe9_61_2e_71_e3_00_00_01;
 
 /// Page 0's files go into `dir` itself, page k's into `dir/page-k`.
 fn page_dir(dir: &Path, page: u32) -> PathBuf {
@@ -182,11 +188,61 @@ impl Page<'_> {
             encode::write_exr(&lightmap, &dir.join("lightmap.exr"))?;
         }
         timer.lap("encode");
+        let engine_view = self.engine_view(&encoded, s, run)?;
+        if engine_view.is_some() {
+            timer.lap("engine view");
+        }
         Ok(PageOutput {
             lightmap,
             encoded,
             seams: built.seams,
+            engine_view,
         })
+    }
+
+    /// The engine-view error of the page's encoded images, with this
+    /// page's share (by area) of `run.engine_view_points` points; `None`
+    /// when the run does not ask for it.
+    pub fn engine_view(
+        &self,
+        encoded: &Encoded,
+        s: &BakeSettings,
+        run: &RunOptions,
+    ) -> Result<Option<EngineView>> {
+        if run.engine_view_points == 0 {
+            return Ok(None);
+        }
+        if run.engine_view_rays == 0 {
+            return Err(Error::option("engine_view_rays", "must be at least 1"));
+        }
+        let level = self.level;
+        let areas = level.page_surface_areas();
+        let total: f64 = areas.iter().sum();
+        let share = areas[self.page as usize] / total.max(f64::MIN_POSITIVE);
+        let count = (run.engine_view_points as f64 * share).round() as usize;
+        let tris =
+            crate::atlas::rasterize::surface_triangles(&level.geometry.receivers, &self.atlas);
+        // Its own streams: never the bake's rays.
+        let seed = page_seed(s.seed ^ ENGINE_VIEW_SEED, self.page);
+        let points =
+            engine_view::surface_points(&tris, self.atlas.width, self.atlas.height, count, seed);
+        let (reference, inside) = engine_view::reference(
+            &points,
+            &level.tracer,
+            level.max_distance,
+            run.engine_view_rays,
+            seed,
+        );
+        let decoded = crate::encode::decode(encoded)?;
+        Ok(Some(engine_view::measure(
+            &points,
+            &decoded,
+            &reference.ao,
+            &reference.sh,
+            &inside,
+            &engine_view::centers_inside(&self.receivers),
+            run.engine_view_rays,
+        )))
     }
 }
 

@@ -5,11 +5,12 @@
 //! `--report`.
 
 use super::level::Level;
-use super::page::BakePasses;
+use super::page::{BakePasses, PageOutput};
 use crate::bake::adaptive::{self, AdaptiveStats};
 use crate::bake::sheared::{self, ShearedStats};
 use crate::encode::Encoded;
 use crate::job::settings::{BakeSettings, Method};
+use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
 use crate::shard::Shard;
 use crate::stage::{StageTime, total};
@@ -28,6 +29,7 @@ pub struct PageDone {
     pub adaptive: Option<AdaptiveReport>,
     pub sheared: Option<ShearedReport>,
     pub seams: Option<SeamReport>,
+    pub engine_view: Option<EngineView>,
     /// Seconds of the method's passes.
     pub pass_seconds: f64,
 }
@@ -40,13 +42,12 @@ impl PageDone {
         texels: usize,
         inside: &[bool],
         passes: &BakePasses,
-        encoded: Encoded,
-        seams: Option<SeamReport>,
+        out: &PageOutput,
         s: &BakeSettings,
     ) -> PageDone {
         PageDone {
             page,
-            encoded,
+            encoded: out.encoded.clone(),
             texels,
             texels_inside: inside.iter().filter(|&&x| x).count(),
             rays: passes.bake.rays,
@@ -59,7 +60,8 @@ impl PageDone {
                 .sheared_stats
                 .as_ref()
                 .map(|f| ShearedReport::new(&s.sheared, f)),
-            seams,
+            seams: out.seams,
+            engine_view: out.engine_view,
             pass_seconds: total(&passes.stages),
         }
     }
@@ -108,6 +110,11 @@ pub struct Report {
     /// the solve (`--seams stitch`), with one page; per page in `pages`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamReport>,
+    /// The error an engine shows (`--engine-view-points`): bilinear lookups
+    /// of the written textures at surface points against a reference, by
+    /// texel class, over every baked page; per page in `pages`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub engine_view: Option<EngineView>,
     /// Rays cast over the seconds of the method's passes.
     pub rays_per_second: f64,
     pub max_distance: f64,
@@ -139,6 +146,8 @@ pub struct PageReport {
     pub rays_cast: u64,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub engine_view: Option<EngineView>,
 }
 
 /// The visibility layer's figures in the report.
@@ -301,6 +310,7 @@ pub fn level_report(
                 texels_inside: d.map_or(0, |d| d.texels_inside),
                 rays_cast: d.map_or(0, |d| d.rays),
                 seams: d.and_then(|d| d.seams),
+                engine_view: d.and_then(|d| d.engine_view),
             }
         })
         .collect();
@@ -340,6 +350,12 @@ pub fn level_report(
             rays: v,
             rays_per_texel: v as f64 / texels.max(1) as f64,
         }),
+        engine_view: engine_view::merge(
+            &done
+                .iter()
+                .filter_map(|d| d.engine_view)
+                .collect::<Vec<_>>(),
+        ),
         seams: match done {
             [one] if level.page_count() == 1 => one.seams,
             _ => None,

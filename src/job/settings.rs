@@ -207,6 +207,14 @@ pub struct RunOptions {
     /// DIR/page-k)
     #[arg(long = "exr", value_name = "DIR")]
     pub exr_dir: Option<PathBuf>,
+    /// Measure the engine-view error into --report: bilinear lookups of the
+    /// written 8-bit textures at N surface points (spread over the pages by
+    /// area) against a Monte Carlo reference there, by texel class (0: off)
+    #[arg(long, value_name = "N", default_value_t = 0, hide_default_value = true)]
+    pub engine_view_points: usize,
+    /// Rays per point of the engine-view reference
+    #[arg(long, value_name = "N", default_value_t = 512)]
+    pub engine_view_rays: u32,
 }
 
 impl RunOptions {
@@ -215,6 +223,8 @@ impl RunOptions {
         progress: false,
         debug_dir: None,
         exr_dir: None,
+        engine_view_points: 0,
+        engine_view_rays: 512,
     };
 }
 
@@ -224,8 +234,7 @@ impl Default for RunOptions {
     fn default() -> Self {
         RunOptions {
             progress: true,
-            debug_dir: None,
-            exr_dir: None,
+            ..RunOptions::QUIET
         }
     }
 }

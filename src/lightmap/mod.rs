@@ -17,9 +17,11 @@
 //!    (within the page, and to a shared target across pages).
 //!
 //! A new post-bake stage goes into [`build`], between these, reading and
-//! writing the [`Lightmap`].
+//! writing the [`Lightmap`]. [`engine_view`] measures the result where an
+//! engine reads it (bilinear lookups at surface points).
 
 pub mod dilate;
+pub mod engine_view;
 pub mod seams;
 pub mod spread;
 

@@ -45,6 +45,11 @@ pub struct ReportSettings {
     /// them)
     #[arg(long, value_name = "N", default_value_t = 64)]
     pub stability_rays: u32,
+    /// Surface points of the engine-view error (bilinear lookups of each
+    /// run's written textures against a --reference-rays reference there,
+    /// by texel class; 0: skip it)
+    #[arg(long, value_name = "N", default_value_t = 20000)]
+    pub engine_view_points: usize,
     /// Also run each method's default settings if `budgets` lacks them
     /// (their error maps are drawn and 256-ray Monte Carlo sets the
     /// equal-error target).
@@ -112,6 +117,11 @@ pub struct RunFigures {
     /// Of all cells: brute-forced because no neighbour ray hit in them and
     /// too few looked through them to trust them open.
     pub cells_brute_no_hit: Option<f64>,
+    /// The error an engine shows: the run's written textures looked up
+    /// bilinearly at surface points against the points' reference, by
+    /// texel class (`--engine-view-points`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub engine_view: Option<crate::lightmap::engine_view::EngineView>,
 }
 
 /// The equal-error comparison at the error of 256-ray Monte Carlo.

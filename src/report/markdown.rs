@@ -96,6 +96,37 @@ pub fn markdown(r: &SweepReport) -> String {
             }
         ));
     }
+    if let Some(first) = r.runs.iter().find_map(|run| run.engine_view) {
+        line(String::new());
+        line(format!(
+            "**Engine view** (what an engine shows: each run's written 8-bit textures read bilinearly at {} surface points spread by area, against a {}-ray reference there; points by their four taps: interior when every tap's centre lies in a triangle, sliver when none does, border otherwise, slivers included; {} points inside geometry left out):\n",
+            first.all.points + first.inside,
+            first.reference_rays,
+            first.inside,
+        ));
+        line(format!(
+            "| run | AO RMSE all | interior | border ({:.1}% of area) | sliver ({:.1}%) | border's share of AO error | border > 0.05 | SH RMSE all | border |",
+            100.0 * first.border.area_share,
+            100.0 * first.sliver.area_share
+        ));
+        line("|---|---|---|---|---|---|---|---|---|".into());
+        for run in &r.runs {
+            if let Some(e) = &run.engine_view {
+                line(format!(
+                    "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.0}% | {:.0}% | {:.4} | {:.4} |",
+                    run.label,
+                    e.all.ao_rmse,
+                    e.interior.ao_rmse,
+                    e.border.ao_rmse,
+                    e.sliver.ao_rmse,
+                    100.0 * e.border.ao_error_share,
+                    100.0 * e.border.ao_over_005,
+                    e.all.sh_rmse,
+                    e.border.sh_rmse
+                ));
+            }
+        }
+    }
     if let Some(e) = &r.equal_error {
         line(String::new());
         let fmt = |v: Option<f64>| v.map_or("not reached".to_string(), |v| format!("{v:.2} s"));

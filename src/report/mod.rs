@@ -39,6 +39,7 @@ use crate::atlas::AtlasSize;
 use crate::error::{Error, Result};
 use crate::gltf::Scene;
 use crate::job::{BakeSettings, Level, Method, Page, RunOptions};
+use crate::lightmap::engine_view;
 use crate::stage::{StageTimer, progress_bar, seconds_of};
 use metrics::{cost_at_error, error_stats, loglog_at, sh_band_rmse};
 
@@ -136,6 +137,29 @@ pub fn sweep(
     let ref_sh = &picked(&reference.bake.sh, &compared);
     let ref_sh_flat: Vec<f32> = ref_sh.iter().flatten().copied().collect();
 
+    // The engine view's points and their reference, once.
+    let engine = (rs.engine_view_points > 0).then(|| {
+        pb.set_message("engine-view reference");
+        let tris =
+            crate::atlas::rasterize::surface_triangles(&level.geometry.receivers, &prepared.atlas);
+        let (w, h) = (prepared.atlas.width, prepared.atlas.height);
+        let seed = reference_seed(rs.seed) ^ 0xe9;
+        let points = engine_view::surface_points(&tris, w, h, rs.engine_view_points, seed);
+        let (reference, inside) = engine_view::reference(
+            &points,
+            &level.tracer,
+            level.max_distance,
+            rs.reference_rays,
+            seed,
+        );
+        (
+            points,
+            reference,
+            inside,
+            engine_view::centers_inside(&prepared.receivers),
+        )
+    });
+
     let mut runs = Vec::new();
     let mut default_ao = Vec::new();
     let mut brute_fraction = None;
@@ -150,6 +174,24 @@ pub fn sweep(
         let run_sh = picked(&passes.bake.sh, &compared);
         let sh_flat: Vec<f32> = run_sh.iter().flatten().copied().collect();
         let fs = passes.sheared_stats.as_ref();
+        // What the engine reads: the run's lightmap stage and encode (not
+        // timed: shared), looked up at the points.
+        let engine_view = match &engine {
+            Some((points, reference, inside, centers)) => {
+                let out = prepared.finish(&passes, &s, &run, &mut StageTimer::new())?;
+                let decoded = crate::encode::decode(&out.encoded)?;
+                Some(engine_view::measure(
+                    points,
+                    &decoded,
+                    &reference.ao,
+                    &reference.sh,
+                    inside,
+                    centers,
+                    rs.reference_rays,
+                ))
+            }
+            None => None,
+        };
         let default_settings = b.is_default();
         if default_settings && !default_ao.iter().any(|(l, _)| *l == label) {
             // The maps show texels inside geometry as the reference's (not
@@ -186,6 +228,7 @@ pub fn sweep(
             cells_brute_forced: fs.map(|f| f.cell_share(f.cells_brute)),
             cells_brute_contact: fs.map(|f| f.cell_share(f.cells_contact)),
             cells_brute_no_hit: fs.map(|f| f.cell_share(f.cells_no_hit)),
+            engine_view,
         });
         pb.inc(1);
     }
@@ -354,6 +397,7 @@ mod tests {
             cells_brute_forced: None,
             cells_brute_contact: None,
             cells_brute_no_hit: None,
+            engine_view: None,
         }
     }
 

@@ -1,0 +1,110 @@
+//! The engine-view metric on closed forms: a receiver under a parallel
+//! plane (AO = (h/D)^2 everywhere on it, so every lookup, at chart borders
+//! too, has one right answer), the reference checked against that closed
+//! form, and the metric's classes checked by spoiling one class of texels.
+
+mod common;
+
+use aobake::job::{Job, Level, RunOptions};
+use aobake::lightmap::engine_view::{self, TexelClass};
+use aobake::stage::StageTimer;
+use common::{glb, plain_nodes, quad, scene, settings};
+
+/// A 0.4 x 0.4 receiver at z = 0 under a large plane at z = 1 facing down;
+/// with D = 2, AO = (1/2)^2 on the receiver.
+fn parallel_planes() -> aobake::gltf::Scene {
+    let recv = quad([0.0; 3], [0.2, 0.0, 0.0], [0.0, 0.2, 0.0], true);
+    let occ = quad([0.0, 0.0, 1.0], [0.0, 2.2, 0.0], [2.2, 0.0, 0.0], true);
+    scene(&glb(&[recv, occ], plain_nodes(2)))
+}
+
+#[test]
+fn the_reference_at_surface_points_is_the_closed_form() {
+    let sc = parallel_planes();
+    let s = settings(128, 64, Some(2.0));
+    let run = RunOptions::QUIET;
+    let mut timer = StageTimer::new();
+    let level = Level::new(&sc, &s, &run, &mut timer).unwrap();
+    let page = level.page(0, &sc, &s, &mut timer).unwrap();
+    let tris = aobake::atlas::rasterize::surface_triangles(&level.geometry.receivers, &page.atlas);
+    let points = engine_view::surface_points(&tris, page.atlas.width, page.atlas.height, 4000, 9);
+    let (reference, inside) =
+        engine_view::reference(&points, &level.tracer, level.max_distance, 512, 9);
+    assert!(inside.iter().all(|&i| !i));
+    let on_receiver: Vec<usize> = (0..points.uv.len())
+        .filter(|&k| points.receivers.normal[k].z > 0.5)
+        .collect();
+    // The receiver is 0.16 of the 19.52 area: about 33 of 4000 points.
+    assert!(on_receiver.len() > 15, "{}", on_receiver.len());
+    let mean: f64 = on_receiver
+        .iter()
+        .map(|&k| reference.ao[k] as f64)
+        .sum::<f64>()
+        / on_receiver.len() as f64;
+    assert!(
+        (mean - 0.25).abs() < 0.01,
+        "reference AO {mean}, closed form 0.25"
+    );
+}
+
+#[test]
+fn a_bake_of_a_uniform_answer_shows_no_error_anywhere_and_spoiled_borders_show() {
+    let sc = parallel_planes();
+    let s = settings(128, 256, Some(2.0));
+    let run = RunOptions {
+        engine_view_points: 6000,
+        ..RunOptions::QUIET
+    };
+    let mut job = Job::new(&sc, &s, &run, StageTimer::new());
+    let level = job.level().unwrap();
+    let mut kept = None;
+    let done = job
+        .pages(&level, &[0], &mut |page, _, out| {
+            kept = Some((page.receivers, out.encoded));
+        })
+        .unwrap();
+    let view = done[0].engine_view.expect("measured");
+    assert_eq!(view.all.points + view.inside, 6000);
+    assert!(view.border.points > 50, "{view:?}");
+    // Both answers are smooth: the bake reads right everywhere (reference
+    // noise at 512 rays and the bake's at 256 are about 0.01).
+    assert!(view.all.ao_rmse < 0.02, "{view:?}");
+    assert!(view.border.ao_rmse < 0.03, "{view:?}");
+    assert!(view.all.sh_rmse < 0.02, "{view:?}");
+
+    // Spoil the border: every texel whose centre is not inside a triangle
+    // reads 0. Interior lookups never touch them; border lookups do.
+    let (receivers, encoded) = kept.unwrap();
+    let mut lm = aobake::encode::decode(&encoded).unwrap();
+    let centers = engine_view::centers_inside(&receivers);
+    for (a, &c) in lm.ao.iter_mut().zip(&centers) {
+        if !c {
+            *a = 0.0;
+        }
+    }
+    let page = level.page(0, &sc, &s, &mut StageTimer::new()).unwrap();
+    let tris = aobake::atlas::rasterize::surface_triangles(&level.geometry.receivers, &page.atlas);
+    let points = engine_view::surface_points(&tris, lm.width, lm.height, 6000, 5);
+    let (reference, inside) =
+        engine_view::reference(&points, &level.tracer, level.max_distance, 512, 5);
+    let spoiled = engine_view::measure(
+        &points,
+        &lm,
+        &reference.ao,
+        &reference.sh,
+        &inside,
+        &centers,
+        512,
+    );
+    assert!(spoiled.interior.ao_rmse < 0.02, "{spoiled:?}");
+    assert!(spoiled.border.ao_rmse > 0.15, "{spoiled:?}");
+    assert!(spoiled.border.ao_error_share > 0.9, "{spoiled:?}");
+    // Classes are what the taps say.
+    for (k, &uv) in points.uv.iter().enumerate().take(200) {
+        let class = engine_view::class_of(uv, lm.width, lm.height, &centers);
+        let (ao, _) = engine_view::lookup(&lm, uv);
+        if class == TexelClass::Interior {
+            assert!((ao - reference.ao[k]).abs() < 0.1, "point {k}");
+        }
+    }
+}

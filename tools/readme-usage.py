@@ -1,0 +1,24 @@
+#!/usr/bin/env python3
+"""Rewrites the README's usage blocks (```console blocks starting with
+`$ aobake ...`) from the program's own output, which tests/cli.rs checks.
+
+    cargo build && python3 tools/readme-usage.py [target/debug/aobake]
+"""
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+binary = sys.argv[1] if len(sys.argv) > 1 else "target/debug/aobake"
+readme = Path(__file__).resolve().parent.parent / "README.md"
+text = readme.read_text()
+
+
+def block(match):
+    args = match.group(1).split()
+    out = subprocess.run([binary, *args], capture_output=True, text=True, check=True).stdout
+    return f"```console\n$ aobake {' '.join(args)}\n{out}```"
+
+
+text = re.sub(r"```console\n\$ aobake ([^\n]*)\n.*?```", block, text, flags=re.S)
+readme.write_text(text)
