@@ -28,9 +28,9 @@ fn the_reference_at_surface_points_is_the_closed_form() {
     let page = level.page(0, &sc, &s, &mut timer).unwrap();
     let tris = aobake::atlas::rasterize::surface_triangles(&level.geometry.receivers, &page.atlas);
     let points = engine_view::surface_points(&tris, page.atlas.width, page.atlas.height, 4000, 9);
-    let (reference, inside) =
-        engine_view::reference(&points, &level.tracer, level.max_distance, 512, 9);
-    assert!(inside.iter().all(|&i| !i));
+    let reference =
+        engine_view::reference(&points, &level.tracer, level.max_distance, 512, 9, false);
+    assert!(reference.inside.iter().all(|&i| !i));
     let on_receiver: Vec<usize> = (0..points.uv.len())
         .filter(|&k| points.receivers.normal[k].z > 0.5)
         .collect();
@@ -85,17 +85,9 @@ fn a_bake_of_a_uniform_answer_shows_no_error_anywhere_and_spoiled_borders_show()
     let page = level.page(0, &sc, &s, &mut StageTimer::new()).unwrap();
     let tris = aobake::atlas::rasterize::surface_triangles(&level.geometry.receivers, &page.atlas);
     let points = engine_view::surface_points(&tris, lm.width, lm.height, 6000, 5);
-    let (reference, inside) =
-        engine_view::reference(&points, &level.tracer, level.max_distance, 512, 5);
-    let spoiled = engine_view::measure(
-        &points,
-        &lm,
-        &reference.ao,
-        &reference.sh,
-        &inside,
-        &centers,
-        512,
-    );
+    let reference =
+        engine_view::reference(&points, &level.tracer, level.max_distance, 512, 5, false);
+    let spoiled = engine_view::measure(&points, &lm, &reference, &centers, &[], 0);
     assert!(spoiled.interior.ao_rmse < 0.02, "{spoiled:?}");
     assert!(spoiled.border.ao_rmse > 0.15, "{spoiled:?}");
     assert!(spoiled.border.ao_error_share > 0.9, "{spoiled:?}");
@@ -107,4 +99,35 @@ fn a_bake_of_a_uniform_answer_shows_no_error_anywhere_and_spoiled_borders_show()
             assert!((ao - reference.ao[k]).abs() < 0.1, "point {k}");
         }
     }
+}
+
+#[test]
+fn the_visibility_layer_relights_where_the_engine_reads_it() {
+    // The same planes with the layer on every primitive: under the plane
+    // the layer and its reference agree up to noise and 8 bits, at chart
+    // borders as inside.
+    let sc = parallel_planes();
+    let s = aobake::BakeSettings {
+        visibility: aobake::job::VisibilityMode::All,
+        ..settings(128, 256, Some(2.0))
+    };
+    let run = RunOptions {
+        engine_view_points: 4000,
+        ..RunOptions::QUIET
+    };
+    let mut job = Job::new(&sc, &s, &run, StageTimer::new());
+    let level = job.level().unwrap();
+    let done = job.pages(&level, &[0], &mut |_, _, _| {}).unwrap();
+    let view = done[0].engine_view.expect("measured");
+    assert_eq!(view.all.layer_points, view.all.points);
+    let all = view.all.relight_error.expect("a relight error");
+    let border = view.border.relight_error.expect("border points");
+    assert!(all < 0.03, "{view:?}");
+    assert!(border < 0.05, "{view:?}");
+    // Without the layer, no relight error.
+    let s = settings(128, 64, Some(2.0));
+    let mut plain = Job::new(&sc, &s, &run, StageTimer::new());
+    let level = plain.level().unwrap();
+    let done = plain.pages(&level, &[0], &mut |_, _, _| {}).unwrap();
+    assert_eq!(done[0].engine_view.unwrap().all.relight_error, None);
 }

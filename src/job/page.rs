@@ -226,22 +226,22 @@ impl Page<'_> {
         let seed = page_seed(s.seed ^ ENGINE_VIEW_SEED, self.page);
         let points =
             engine_view::surface_points(&tris, self.atlas.width, self.atlas.height, count, seed);
-        let (reference, inside) = engine_view::reference(
+        let reference = engine_view::reference(
             &points,
             &level.tracer,
             level.max_distance,
             run.engine_view_rays,
             seed,
+            encoded.visibility.is_some(),
         );
         let decoded = crate::encode::decode(encoded)?;
         Ok(Some(engine_view::measure(
             &points,
             &decoded,
-            &reference.ao,
-            &reference.sh,
-            &inside,
+            &reference,
             &engine_view::centers_inside(&self.receivers),
-            run.engine_view_rays,
+            &level.visibility_meshes,
+            encoded.visibility.as_ref().map_or(0, |v| v.scale.len()),
         )))
     }
 }

@@ -15,16 +15,26 @@
 //! - *sliver*: none does (a chart thinner than a texel there).
 //!
 //! The reference ([`reference`]) is the contract's: AO and c_i at the point
-//! with n = its interpolated normal, by Monte Carlo; points inside geometry
-//! (the contract's rule, [`crate::bake::validity`]) are left out, as no
-//! camera sees them.
+//! with n = its interpolated normal, by Monte Carlo (and v_i where the
+//! visibility layer is baked); points inside geometry (the contract's rule,
+//! [`crate::bake::validity`]) are left out, as no camera sees them.
+//!
+//! Where a point's primitive carries the visibility layer, the *relight
+//! error* is what an engine's normal-mapped diffuse makes of the lookups:
+//! |E(n') from the looked-up c and v - E(n') from the reference's| / the
+//! unoccluded E(n'), the anchored diffuse of [`crate::relight`] at a normal
+//! n' tilted [`RELIGHT_TILT_DEGREES`] from n (azimuth per point) under
+//! [`RELIGHT_ENVIRONMENTS`] fixed L2 environments, averaged.
 
 use crate::atlas::Receivers;
 use crate::atlas::rasterize::SurfaceTri;
-use crate::bake::{BakeParams, mc, validity};
+use crate::bake::{BakeParams, mc, validity, visibility};
 use crate::bits::mix64;
-use crate::sh::SH_COUNT;
+use crate::relight::{Environment, anchored_diffuse};
+use crate::sample::Frame;
+use crate::sh::{self, SH_COUNT, VIS_COUNT};
 use crate::trace::Tracer;
+use glam::{Quat, Vec3};
 use serde::Serialize;
 
 use super::Lightmap;
@@ -39,6 +49,61 @@ pub struct SurfacePoints {
     pub receivers: Receivers,
     /// Lightmap UV of each point, in [0, 1] of the page.
     pub uv: Vec<[f32; 2]>,
+    /// Receiver mesh of each point.
+    pub mesh: Vec<u32>,
+}
+
+/// The reference at surface points ([`reference`]).
+#[derive(Clone, Debug, Default)]
+pub struct PointReference {
+    pub ao: Vec<f32>,
+    pub sh: Vec<[f32; SH_COUNT]>,
+    /// v_0..v_15 at each point, when asked for.
+    pub visibility: Option<Vec<[f32; VIS_COUNT]>>,
+    /// Points inside geometry (left out).
+    pub inside: Vec<bool>,
+    /// Rays per point.
+    pub rays: u32,
+}
+
+/// The tilt of the normal-mapped normal n' from n in the relight error.
+pub const RELIGHT_TILT_DEGREES: f32 = 30.0;
+/// Environments of the relight error.
+pub const RELIGHT_ENVIRONMENTS: usize = 8;
+
+/// The relight error's environments: two near-directional (a lobe of
+/// weight 2 over a dim ambient) and six of an ambient and three lobes,
+/// fixed by a seed.
+pub fn environments() -> Vec<Environment> {
+    let mut state = 0x5eed_e17eu64;
+    let mut next = move || {
+        state = mix64(state.wrapping_add(0x9E37_79B9_7F4A_7C15));
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    (0..RELIGHT_ENVIRONMENTS)
+        .map(|k| {
+            let directional = k < 2;
+            let mut l = [0.0f32; SH_COUNT];
+            let (ambient, lobes) = if directional {
+                (0.05, 1)
+            } else {
+                (0.2 + next(), 3)
+            };
+            l[0] = ambient * (4.0 * std::f32::consts::PI).sqrt();
+            for _ in 0..lobes {
+                let z = 2.0 * next() - 1.0;
+                let phi = 2.0 * std::f32::consts::PI * next();
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let w = if directional { 2.0 } else { next() };
+                let y = sh::basis(d);
+                for i in 0..SH_COUNT {
+                    l[i] += w * sh::CLAMPED_COSINE_BAND[sh::BAND[i]] * y[i];
+                }
+            }
+            Environment::new(l)
+        })
+        .collect()
 }
 
 /// A uniform number in [0, 1) from a key.
@@ -69,6 +134,7 @@ pub fn surface_points(
             ..Default::default()
         },
         uv: Vec::with_capacity(count),
+        mesh: Vec::with_capacity(count),
     };
     if total.is_nan() || total <= 0.0 || count == 0 {
         return out;
@@ -90,6 +156,7 @@ pub fn surface_points(
         r.geo_normal.push(geo);
         r.footprint.push(t.footprint);
         r.center_inside.push(true);
+        out.mesh.push(t.mesh);
         out.uv
             .push([uv.x / width as f32, uv.y / height as f32].map(|c| c.clamp(0.0, 1.0)));
     }
@@ -97,18 +164,26 @@ pub fn surface_points(
 }
 
 /// The contract's AO and SH at every point by Monte Carlo with `rays`
-/// cosine rays, and which points are inside geometry.
+/// cosine rays (and, with `layer`, v_i with `rays` uniform rays), and which
+/// points are inside geometry.
 pub fn reference(
     points: &SurfacePoints,
     tracer: &Tracer,
     max_distance: f32,
     rays: u32,
     seed: u64,
-) -> (crate::bake::Bake, Vec<bool>) {
+    layer: bool,
+) -> PointReference {
     let params = BakeParams { max_distance, seed };
     let bake = mc::bake(&points.receivers, tracer, rays, &params, &|_| {});
-    let inside = validity::inside_geometry(&points.receivers, tracer, max_distance, seed);
-    (bake, inside)
+    let visibility = layer.then(|| visibility::bake(&points.receivers, tracer, rays, &params).v);
+    PointReference {
+        ao: bake.ao,
+        sh: bake.sh,
+        visibility,
+        inside: validity::inside_geometry(&points.receivers, tracer, max_distance, seed),
+        rays,
+    }
 }
 
 /// The class of a lookup at `uv` by its four taps: how many of their
@@ -173,6 +248,11 @@ pub struct ClassError {
     pub ao_error_share: f64,
     /// Share of the class's points with |AO error| > 0.05.
     pub ao_over_005: f64,
+    /// Points whose primitive carries the visibility layer.
+    pub layer_points: usize,
+    /// Their mean relight error (see the module doc).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relight_error: Option<f64>,
 }
 
 /// The engine-view error of a bake by texel class.
@@ -196,14 +276,20 @@ struct Sums {
     ao2: f64,
     sh2: f64,
     over: usize,
+    layer: usize,
+    relight: f64,
 }
 
 impl Sums {
-    fn add(&mut self, ao_err: f64, sh2: f64) {
+    fn add(&mut self, ao_err: f64, sh2: f64, relight: Option<f64>) {
         self.n += 1;
         self.ao2 += ao_err * ao_err;
         self.sh2 += sh2;
         self.over += (ao_err.abs() > 0.05) as usize;
+        if let Some(r) = relight {
+            self.layer += 1;
+            self.relight += r;
+        }
     }
 
     fn error(&self, all: &Sums) -> ClassError {
@@ -219,35 +305,106 @@ impl Sums {
                 0.0
             },
             ao_over_005: self.over as f64 / n,
+            layer_points: self.layer,
+            relight_error: (self.layer > 0).then(|| self.relight / self.layer as f64),
         }
     }
 }
 
+/// The bilinear lookup of the visibility layer at `uv`.
+fn lookup_layer(v: &[[f32; VIS_COUNT]], width: u32, height: u32, uv: [f32; 2]) -> [f32; VIS_COUNT] {
+    let mut out = [0.0; VIS_COUNT];
+    for (t, w) in taps(uv, width, height) {
+        for (o, x) in out.iter_mut().zip(&v[t as usize]) {
+            *o += w * x;
+        }
+    }
+    out
+}
+
+/// The mean relight error at one point (see the module doc): the engine's
+/// lookups (`c`, `v`) against the reference's (`rc`, `rv`), n' tilted in an
+/// azimuth from `key`.
+#[allow(clippy::too_many_arguments)]
+fn relight_error(
+    envs: &[Environment],
+    n: Vec3,
+    key: u64,
+    c: &[f32; SH_COUNT],
+    v: &[f32; VIS_COUNT],
+    rc: &[f32; SH_COUNT],
+    rv: &[f32; VIS_COUNT],
+) -> f64 {
+    let frame = Frame::from_normal(n);
+    let phi = 2.0 * std::f32::consts::PI * unit(key);
+    let axis = frame.tangent * phi.cos() + frame.bitangent * phi.sin();
+    let tilted = Quat::from_axis_angle(
+        axis.cross(n).normalize_or(frame.tangent),
+        RELIGHT_TILT_DEGREES.to_radians(),
+    ) * n;
+    let mut sum = 0.0f64;
+    for env in envs {
+        let open = env.open_diffuse(tilted).abs().max(1e-6);
+        let est = anchored_diffuse(env, c, v, n, tilted);
+        let truth = anchored_diffuse(env, rc, rv, n, tilted);
+        sum += ((est - truth) / open).abs() as f64;
+    }
+    sum / envs.len().max(1) as f64
+}
+
 /// Compares the lookups of `lm` (the images as an engine reads them) at
-/// `points` with their reference (`ao`, `sh`), leaving out the points
-/// `inside` geometry; `center_inside` classifies them ([`centers_inside`]).
+/// `points` with their `reference`, leaving out the points inside
+/// geometry; `center_inside` classifies them ([`centers_inside`]). The
+/// relight error is measured at points of the meshes `layer_meshes` marks
+/// when both `lm` and the reference carry the layer; `layer_count`: the
+/// coefficients the textures hold (9 or 16), the reference cut alike.
 pub fn measure(
     points: &SurfacePoints,
     lm: &Lightmap,
-    reference_ao: &[f32],
-    reference_sh: &[[f32; SH_COUNT]],
-    inside: &[bool],
+    reference: &PointReference,
     center_inside: &[bool],
-    reference_rays: u32,
+    layer_meshes: &[bool],
+    layer_count: usize,
 ) -> EngineView {
     let (mut all, mut interior, mut border, mut sliver) = Default::default();
     let mut left_out = 0;
+    let envs = environments();
+    let layer = lm
+        .visibility
+        .as_deref()
+        .zip(reference.visibility.as_deref());
     for (k, &uv) in points.uv.iter().enumerate() {
-        if inside.get(k).copied().unwrap_or(false) {
+        if reference.inside.get(k).copied().unwrap_or(false) {
             left_out += 1;
             continue;
         }
         let (ao, sh) = lookup(lm, uv);
-        let ao_err = (ao - reference_ao[k]) as f64;
-        let sh2: f64 = (sh.iter().zip(&reference_sh[k]))
+        let ao_err = (ao - reference.ao[k]) as f64;
+        let sh2: f64 = (sh.iter().zip(&reference.sh[k]))
             .map(|(a, b)| ((a - b) as f64).powi(2))
             .sum();
-        let add = |s: &mut Sums| s.add(ao_err, sh2);
+        let has_layer = (points.mesh.get(k))
+            .is_some_and(|&m| layer_meshes.get(m as usize).copied().unwrap_or(false));
+        let relight = match layer {
+            Some((v, rv)) if has_layer => {
+                let got = lookup_layer(v, lm.width, lm.height, uv);
+                let mut want = rv[k];
+                want[layer_count.min(VIS_COUNT)..].fill(0.0);
+                let n = points.receivers.normal[k];
+                let key = mix64(k as u64 ^ 0x7117);
+                Some(relight_error(
+                    &envs,
+                    n,
+                    key,
+                    &sh,
+                    &got,
+                    &reference.sh[k],
+                    &want,
+                ))
+            }
+            _ => None,
+        };
+        let add = |s: &mut Sums| s.add(ao_err, sh2, relight);
         add(&mut all);
         match class_of(uv, lm.width, lm.height, center_inside) {
             TexelClass::Interior => add(&mut interior),
@@ -265,7 +422,7 @@ pub fn measure(
         border: border.error(&all),
         sliver: sliver.error(&all),
         inside: left_out,
-        reference_rays,
+        reference_rays: reference.rays,
     }
 }
 
@@ -281,6 +438,8 @@ pub fn merge(views: &[EngineView]) -> Option<EngineView> {
             s.ao2 += c.ao_rmse * c.ao_rmse * c.points as f64;
             s.sh2 += c.sh_rmse * c.sh_rmse * (c.points * SH_COUNT) as f64;
             s.over += (c.ao_over_005 * c.points as f64).round() as usize;
+            s.layer += c.layer_points;
+            s.relight += c.relight_error.unwrap_or(0.0) * c.layer_points as f64;
         }
         s
     };
@@ -364,10 +523,17 @@ mod tests {
                 f(t.x.clamp(0.5, 7.5), t.y.clamp(0.5, 7.5))
             })
             .collect();
-        let sh = vec![[0.0; SH_COUNT]; refs.len()];
+        let reference = |inside: Vec<bool>| PointReference {
+            ao: refs.clone(),
+            sh: vec![[0.0; SH_COUNT]; refs.len()],
+            visibility: None,
+            inside,
+            rays: 1,
+        };
+        let all_out = reference(Vec::new());
         // Every centre inside: every point interior, error zero.
         let centers = vec![true; 64];
-        let v = measure(&p, &lm, &refs, &sh, &[], &centers, 1);
+        let v = measure(&p, &lm, &all_out, &centers, &[], 0);
         assert_eq!(v.interior.points, 500);
         assert!(v.all.ao_rmse < 1e-6, "{}", v.all.ao_rmse);
         // Column 3's centres outside: points whose taps reach it are
@@ -376,7 +542,7 @@ mod tests {
         for y in 0..8 {
             centers[y * 8 + 3] = false;
         }
-        let v = measure(&p, &lm, &refs, &sh, &[], &centers, 1);
+        let v = measure(&p, &lm, &all_out, &centers, &[], 0);
         let near = (p.uv.iter())
             .filter(|uv| (2.5..4.5).contains(&(uv[0] * 8.0)))
             .count();
@@ -384,12 +550,46 @@ mod tests {
         assert_eq!(v.sliver.points, 0);
         assert_eq!(v.interior.points + v.border.points, 500);
         // No centre inside: all slivers (and border).
-        let v = measure(&p, &lm, &refs, &sh, &[], &[false; 64], 1);
+        let v = measure(&p, &lm, &all_out, &[false; 64], &[], 0);
         assert_eq!((v.sliver.points, v.border.points), (500, 500));
         // Inside points are left out.
         let inside: Vec<bool> = (0..500).map(|k| k % 5 == 0).collect();
-        let v = measure(&p, &lm, &refs, &sh, &inside, &centers, 1);
+        let v = measure(&p, &lm, &reference(inside), &centers, &[], 0);
         assert_eq!((v.all.points, v.inside), (400, 100));
+    }
+
+    #[test]
+    fn the_relight_error_vanishes_for_equal_coefficients_and_follows_a_difference() {
+        let envs = environments();
+        assert_eq!(envs.len(), RELIGHT_ENVIRONMENTS);
+        let n = Vec3::new(0.3, -0.2, 0.93).normalize();
+        // An open receiver's exact coefficients (the layer's open
+        // projection: lambda_l Y_i(n)).
+        let y = sh::basis(n);
+        let c: [f32; SH_COUNT] = std::array::from_fn(|i| {
+            sh::CLAMPED_COSINE_BAND[sh::BAND[i]] / std::f32::consts::PI * y[i]
+        });
+        let lambda = [2.0 * std::f32::consts::PI, std::f32::consts::PI, 0.0];
+        let mut v = [0.0f32; VIS_COUNT];
+        for i in 0..SH_COUNT {
+            v[i] = lambda[sh::BAND[i]] * y[i];
+        }
+        assert_eq!(relight_error(&envs, n, 7, &c, &v, &c, &v), 0.0);
+        // A visibility coefficient off by d moves E(n') by d x (a tilt's
+        // worth of it): some error, and twice the error for twice d.
+        let mut v1 = v;
+        v1[1] += 0.05;
+        let mut v2 = v;
+        v2[1] += 0.10;
+        let e1 = relight_error(&envs, n, 7, &c, &v1, &c, &v);
+        let e2 = relight_error(&envs, n, 7, &c, &v2, &c, &v);
+        assert!(e1 > 1e-4, "{e1}");
+        assert!((e2 / e1 - 2.0).abs() < 1e-3, "{e1} {e2}");
+        // c off by d at n' = n would be c.L off; tilted, the anchor keeps
+        // it: the error of a changed c0 is |d L0| / open(n').
+        let mut c1 = c;
+        c1[0] += 0.01;
+        assert!(relight_error(&envs, n, 7, &c1, &v, &c, &v) > 0.0);
     }
 
     #[test]

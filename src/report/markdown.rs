@@ -105,15 +105,19 @@ pub fn markdown(r: &SweepReport) -> String {
             first.inside,
         ));
         line(format!(
-            "| run | AO RMSE all | interior | border ({:.1}% of area) | sliver ({:.1}%) | border's share of AO error | border > 0.05 | SH RMSE all | border |",
+            "| run | AO RMSE all | interior | border ({:.1}% of area) | sliver ({:.1}%) | border's share of AO error | border > 0.05 | SH RMSE all | border | relight error interior / border |",
             100.0 * first.border.area_share,
             100.0 * first.sliver.area_share
         ));
-        line("|---|---|---|---|---|---|---|---|---|".into());
+        line("|---|---|---|---|---|---|---|---|---|---|".into());
         for run in &r.runs {
             if let Some(e) = &run.engine_view {
+                let relight = match (e.interior.relight_error, e.border.relight_error) {
+                    (Some(i), Some(b)) => format!("{i:.4} / {b:.4}"),
+                    _ => "-".into(),
+                };
                 line(format!(
-                    "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.0}% | {:.0}% | {:.4} | {:.4} |",
+                    "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.0}% | {:.0}% | {:.4} | {:.4} | {relight} |",
                     run.label,
                     e.all.ao_rmse,
                     e.interior.ao_rmse,

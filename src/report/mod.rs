@@ -145,19 +145,19 @@ pub fn sweep(
         let (w, h) = (prepared.atlas.width, prepared.atlas.height);
         let seed = reference_seed(rs.seed) ^ 0xe9;
         let points = engine_view::surface_points(&tris, w, h, rs.engine_view_points, seed);
-        let (reference, inside) = engine_view::reference(
+        // A run with the visibility layer is measured against this
+        // reference's layer (`--visibility auto` bakes one only where a
+        // material reads it).
+        let reference = engine_view::reference(
             &points,
             &level.tracer,
             level.max_distance,
             rs.reference_rays,
             seed,
+            level.bakes_visibility(),
         );
-        (
-            points,
-            reference,
-            inside,
-            engine_view::centers_inside(&prepared.receivers),
-        )
+        let centers = engine_view::centers_inside(&prepared.receivers);
+        (points, reference, centers)
     });
 
     let mut runs = Vec::new();
@@ -177,17 +177,16 @@ pub fn sweep(
         // What the engine reads: the run's lightmap stage and encode (not
         // timed: shared), looked up at the points.
         let engine_view = match &engine {
-            Some((points, reference, inside, centers)) => {
+            Some((points, reference, centers)) => {
                 let out = prepared.finish(&passes, &s, &run, &mut StageTimer::new())?;
                 let decoded = crate::encode::decode(&out.encoded)?;
                 Some(engine_view::measure(
                     points,
                     &decoded,
-                    &reference.ao,
-                    &reference.sh,
-                    inside,
+                    reference,
                     centers,
-                    rs.reference_rays,
+                    &level.visibility_meshes,
+                    out.encoded.visibility.as_ref().map_or(0, |v| v.scale.len()),
                 ))
             }
             None => None,
