@@ -1,6 +1,7 @@
 //! Bit helpers shared by the stages: a 64-bit mix and Morton codes.
 //!
-//! In: integers. Out: their mix ([`mix64`], for seeds and hashes) and
+//! In: integers. Out: their mix ([`mix64`], for seeds and hashes; [`unit`]
+//! as a number in [0, 1)) and
 //! interleaved bits ([`morton2`] for atlas texels, [`morton3`] for world
 //! cells).
 
@@ -11,6 +12,12 @@ pub fn mix64(mut x: u64) -> u64 {
     x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     x ^ (x >> 31)
+}
+
+/// A uniform number in [0, 1) from a key: the top 24 bits of its mix.
+#[inline]
+pub fn unit(key: u64) -> f32 {
+    (mix64(key) >> 40) as f32 / (1u64 << 24) as f32
 }
 
 /// The bits of `v` spread one apart (bit i to bit 2i).
