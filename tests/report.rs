@@ -156,6 +156,15 @@ fn cli_writes_every_file_and_refuses_bad_budgets() {
     assert!(json["cores"].as_u64().unwrap() >= 1);
     assert_eq!(json["reference_rays"], 64);
     assert_eq!(json["stability"].as_array().unwrap().len(), 2);
+    // The engine view is measured by default and plotted beside the
+    // texel-centre plot.
+    assert!(
+        json["runs"][0]["engine_view"]["all"]["points"]
+            .as_u64()
+            .unwrap()
+            > 0
+    );
+    assert!(out.join("engine_view_vs_time.png").exists());
     for f in json["files"].as_array().unwrap() {
         assert!(out.join(f.as_str().unwrap()).exists(), "{f}");
     }

@@ -1,12 +1,12 @@
 //! The files of a report directory: AO error maps in the atlas layout,
-//! the brute-force map, the error-vs-time plot, `report.md` and
-//! `report.json`.
+//! the brute-force map, the error-vs-time plots (texel centres, and the
+//! engine view where measured), `report.md` and `report.json`.
 //!
 //! In: a [`Sweep`]. Out: the files, each written atomically, and the
 //! report with their names.
 
 use super::budget::TARGET_RAYS;
-use super::figures::{Sweep, SweepReport};
+use super::figures::{RunFigures, Sweep, SweepReport};
 use super::markdown::markdown;
 use super::plot::{self, Curve, Plot, Target};
 use crate::atlas::Receivers;
@@ -77,6 +77,13 @@ pub fn write_report(sweep: &Sweep, dir: &Path) -> Result<SweepReport> {
     write("error_vs_time.png", &png)?;
     files.push("error_vs_time.svg".into());
     files.push("error_vs_time.png".into());
+    if let Some(p) = engine_view_vs_time(&report) {
+        let (svg, png) = plot::error_vs_time(&p)?;
+        write("engine_view_vs_time.svg", svg.as_bytes())?;
+        write("engine_view_vs_time.png", &png)?;
+        files.push("engine_view_vs_time.svg".into());
+        files.push("engine_view_vs_time.png".into());
+    }
     files.push("report.md".into());
     files.push("report.json".into());
     report.files = files;
@@ -92,48 +99,24 @@ pub fn write_report(sweep: &Sweep, dir: &Path) -> Result<SweepReport> {
 /// each method reaches it crossed.
 pub fn error_vs_time(r: &SweepReport) -> Plot {
     let e = r.equal_error.as_ref();
-    let curve = |m: Method, legend: &str, crossing: Option<f64>| Curve {
-        legend: legend.to_string(),
-        points: r
-            .runs
-            .iter()
-            .filter(|x| x.method == m)
-            .map(|x| {
-                let prefix = format!("{}:", m.name());
-                let short = x.label.strip_prefix(&prefix).unwrap_or(&x.label);
-                (x.end_to_end_seconds, x.ao.rmse, short.to_string())
-            })
-            .collect(),
-        crossing,
-    };
     let at = |m: Method| e.and_then(|e| e.of(m)).and_then(|m| m.seconds);
-    let name = std::path::Path::new(&r.input)
-        .file_name()
-        .map_or(r.input.clone(), |n| n.to_string_lossy().into_owned());
     Plot {
         title: format!(
-            "{name}: AO error vs end-to-end time ({} texels, {} cores)",
-            r.texels, r.cores
+            "{}: AO error vs end-to-end time ({} texels, {} cores)",
+            file_name(r),
+            r.texels,
+            r.cores
         ),
         x_desc: "end-to-end seconds (log)".into(),
         y_desc: format!("AO RMSE vs {}-ray reference (log)", r.reference_rays),
-        curves: vec![
-            curve(
-                Method::Mc,
-                "Monte Carlo (rays per texel)",
-                e.and_then(|e| e.mc_seconds),
-            ),
-            curve(
-                Method::Sheared,
-                "sheared (sparse rays : gather radius)",
-                at(Method::Sheared),
-            ),
-            curve(
-                Method::Adaptive,
-                "adaptive (mean rays per texel)",
-                at(Method::Adaptive),
-            ),
-        ],
+        curves: method_curves(
+            r,
+            |x| Some(x.ao.rmse),
+            |m| match m {
+                Method::Mc => e.and_then(|e| e.mc_seconds),
+                m => at(m),
+            },
+        ),
         target: e.map(|e| Target {
             error: e.target_ao_rmse,
             legend: format!(
@@ -150,6 +133,72 @@ pub fn error_vs_time(r: &SweepReport) -> Plot {
             ),
         }),
     }
+}
+
+/// The input's file name.
+fn file_name(r: &SweepReport) -> String {
+    std::path::Path::new(&r.input)
+        .file_name()
+        .map_or(r.input.clone(), |n| n.to_string_lossy().into_owned())
+}
+
+/// One curve per method of `error` against end-to-end time (runs without
+/// the error left out; point labels without the method's prefix), each
+/// crossed where `crossing` says.
+fn method_curves(
+    r: &SweepReport,
+    error: impl Fn(&RunFigures) -> Option<f64>,
+    crossing: impl Fn(Method) -> Option<f64>,
+) -> Vec<Curve> {
+    [
+        (Method::Mc, "Monte Carlo (rays per texel)"),
+        (Method::Sheared, "sheared (sparse rays : gather radius)"),
+        (Method::Adaptive, "adaptive (mean rays per texel)"),
+    ]
+    .into_iter()
+    .map(|(m, legend)| Curve {
+        legend: legend.to_string(),
+        points: (r.runs.iter())
+            .filter(|x| x.method == m)
+            .filter_map(|x| {
+                let prefix = format!("{}:", m.name());
+                let short = x.label.strip_prefix(&prefix).unwrap_or(&x.label);
+                Some((x.end_to_end_seconds, error(x)?, short.to_string()))
+            })
+            .collect(),
+        crossing: crossing(m),
+    })
+    .collect()
+}
+
+/// The engine-view plot: each run's AO RMSE over the surface points (the
+/// written textures read bilinearly) against end-to-end time, with 256-ray
+/// Monte Carlo's as the dashed level; `None` without engine-view figures.
+pub fn engine_view_vs_time(r: &SweepReport) -> Option<Plot> {
+    let first = r.runs.iter().find_map(|x| x.engine_view)?;
+    let mc = (r.runs.iter())
+        .find(|x| x.method == Method::Mc && x.default_settings)
+        .and_then(|x| x.engine_view);
+    Some(Plot {
+        title: format!(
+            "{}: engine-view AO error vs end-to-end time ({} points)",
+            file_name(r),
+            first.all.points + first.inside
+        ),
+        x_desc: "end-to-end seconds (log)".into(),
+        y_desc: format!(
+            "AO RMSE at surface points, bilinear, vs {}-ray reference (log)",
+            first.reference_rays
+        ),
+        curves: method_curves(r, |x| x.engine_view.map(|e| e.all.ao_rmse), |_| None),
+        target: mc.map(|e| Target {
+            error: e.all.ao_rmse,
+            legend: format!(
+                "MC-{TARGET_RAYS} {:.4} (interior {:.4}, border {:.4})",
+                e.all.ao_rmse, e.interior.ao_rmse, e.border.ao_rmse
+            ),
+        }),
+    })
 }
 
 #[cfg(test)]

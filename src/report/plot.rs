@@ -25,6 +25,13 @@ fn register_font() {
     });
 }
 
+/// A log axis's range holding a power of ten inside it (plotters labels a
+/// log axis only then): `lo` lowered below the decade under `hi` if need be.
+fn with_decade(lo: f64, hi: f64) -> (f64, f64) {
+    let decade = 10f64.powf(hi.log10().floor());
+    (if decade > lo { lo } else { decade / 1.2 }, hi)
+}
+
 fn plot_error<E: std::fmt::Debug>(e: E) -> Error {
     Error::Limit(format!("cannot draw the plot: {e:?}"))
 }
@@ -114,7 +121,8 @@ where
         e0 = e0.min(target.error.max(MIN_PLOTTED));
         e1 = e1.max(target.error);
     }
-    let (t0, t1, e0, e1) = (t0 / 1.3, t1 * 1.3, e0 / 1.3, e1 * 1.3);
+    let (t0, t1) = with_decade(t0 / 1.3, t1 * 1.3);
+    let (e0, e1) = with_decade(e0 / 1.3, e1 * 1.3);
     let mut chart = ChartBuilder::on(&root)
         .caption(&plot.title, (FONT, 20))
         .margin(15)
@@ -128,6 +136,8 @@ where
         .y_desc(&plot.y_desc)
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 15))
+        .x_labels(10)
+        .y_labels(10)
         .y_label_formatter(&|v| format!("{v:.4}"))
         .x_label_formatter(&|v| format!("{v:.1}"))
         .draw()
