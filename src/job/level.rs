@@ -38,6 +38,9 @@ pub struct Level {
     pub visibility_meshes: Vec<bool>,
     /// Smooth seams whose sides lie on two pages (`--seams stitch`).
     pub cross_seams: Vec<CrossSeam>,
+    /// Per page, the bake-space area of its triangles, computed when first
+    /// asked for ([`Level::page_surface_areas`]).
+    surface_areas: std::sync::OnceLock<Vec<f64>>,
 }
 
 /// One page of a level, prepared: every stage before the first ray. It
@@ -189,6 +192,7 @@ impl Level {
             max_distance,
             visibility_meshes,
             cross_seams,
+            surface_areas: std::sync::OnceLock::new(),
         })
     }
 
@@ -197,8 +201,13 @@ impl Level {
         self.atlas.pages.len() as u32
     }
 
-    /// Per page, the bake-space area of the triangles on it.
-    pub fn page_surface_areas(&self) -> Vec<f64> {
+    /// Per page, the bake-space area of the triangles on it (computed once
+    /// per level, however many pages ask).
+    pub fn page_surface_areas(&self) -> &[f64] {
+        self.surface_areas.get_or_init(|| self.surface_areas_now())
+    }
+
+    fn surface_areas_now(&self) -> Vec<f64> {
         let mut area = vec![0.0; self.atlas.pages.len()];
         for (m, c) in self.geometry.receivers.iter().zip(&self.atlas.meshes) {
             for (t, &p) in c.triangles.chunks_exact(3).zip(&c.triangle_page) {

@@ -215,35 +215,71 @@ impl Page<'_> {
         if run.engine_view_rays == 0 {
             return Err(Error::option("engine_view_rays", "must be at least 1"));
         }
-        let level = self.level;
-        let areas = level.page_surface_areas();
+        let areas = self.level.page_surface_areas();
         let total: f64 = areas.iter().sum();
         let share = areas[self.page as usize] / total.max(f64::MIN_POSITIVE);
         let count = (run.engine_view_points as f64 * share).round() as usize;
-        let tris =
-            crate::atlas::rasterize::surface_triangles(&level.geometry.receivers, &self.atlas);
         // Its own streams: never the bake's rays.
         let seed = page_seed(s.seed ^ ENGINE_VIEW_SEED, self.page);
+        let probe = self.engine_probe(
+            count,
+            run.engine_view_rays,
+            seed,
+            encoded.visibility.is_some(),
+        );
+        self.engine_view_against(&probe, encoded).map(Some)
+    }
+
+    /// `count` surface points of this page uniform by area and their
+    /// `rays`-ray reference (with the visibility layer's when `layer`):
+    /// what the engine view measures the page's textures against (once per
+    /// page in a bake, once for all runs in `aobake report`).
+    pub fn engine_probe(&self, count: usize, rays: u32, seed: u64, layer: bool) -> EngineProbe {
+        let level = self.level;
+        let tris =
+            crate::atlas::rasterize::surface_triangles(&level.geometry.receivers, &self.atlas);
         let points =
             engine_view::surface_points(&tris, self.atlas.width, self.atlas.height, count, seed);
         let reference = engine_view::reference(
             &points,
             &level.tracer,
             level.max_distance,
-            run.engine_view_rays,
+            rays,
             seed,
-            encoded.visibility.is_some(),
+            layer,
         );
-        let decoded = crate::encode::decode(encoded)?;
-        Ok(Some(engine_view::measure(
-            &points,
-            &decoded,
-            &reference,
-            &engine_view::centers_inside(&self.receivers),
-            &level.visibility_meshes,
-            encoded.visibility.as_ref().map_or(0, |v| v.scale.len()),
-        )))
+        EngineProbe {
+            points,
+            reference,
+            centers: engine_view::centers_inside(&self.receivers),
+        }
     }
+
+    /// The engine-view error of `encoded` (this page's written textures,
+    /// decoded as a GPU reads them) against `probe`.
+    pub fn engine_view_against(
+        &self,
+        probe: &EngineProbe,
+        encoded: &Encoded,
+    ) -> Result<EngineView> {
+        let decoded = crate::encode::decode(encoded)?;
+        Ok(engine_view::measure(
+            &probe.points,
+            &decoded,
+            &probe.reference,
+            &probe.centers,
+            &self.level.visibility_meshes,
+            encoded.visibility.as_ref().map_or(0, |v| v.scale.len()),
+        ))
+    }
+}
+
+/// A page's surface points and their reference, and which of its texel
+/// centres lie inside a triangle ([`Page::engine_probe`]).
+pub struct EngineProbe {
+    pub points: engine_view::SurfacePoints,
+    pub reference: engine_view::PointReference,
+    pub centers: Vec<bool>,
 }
 
 /// The output GLB of a level from every page's encoded images (`pages[k]`

@@ -39,7 +39,6 @@ use crate::atlas::AtlasSize;
 use crate::error::{Error, Result};
 use crate::gltf::Scene;
 use crate::job::{BakeSettings, Level, Method, Page, RunOptions};
-use crate::lightmap::engine_view;
 use crate::stage::{StageTimer, progress_bar, seconds_of};
 use metrics::{cost_at_error, error_stats, loglog_at, sh_band_rmse};
 
@@ -138,26 +137,16 @@ pub fn sweep(
     let ref_sh_flat: Vec<f32> = ref_sh.iter().flatten().copied().collect();
 
     // The engine view's points and their reference, once.
-    let engine = (rs.engine_view_points > 0).then(|| {
+    // A run with the visibility layer is measured against this reference's
+    // layer (`--visibility auto` bakes one only where a material reads it).
+    let probe = (rs.engine_view_points > 0).then(|| {
         pb.set_message("engine-view reference");
-        let tris =
-            crate::atlas::rasterize::surface_triangles(&level.geometry.receivers, &prepared.atlas);
-        let (w, h) = (prepared.atlas.width, prepared.atlas.height);
-        let seed = reference_seed(rs.seed) ^ 0xe9;
-        let points = engine_view::surface_points(&tris, w, h, rs.engine_view_points, seed);
-        // A run with the visibility layer is measured against this
-        // reference's layer (`--visibility auto` bakes one only where a
-        // material reads it).
-        let reference = engine_view::reference(
-            &points,
-            &level.tracer,
-            level.max_distance,
+        prepared.engine_probe(
+            rs.engine_view_points,
             rs.reference_rays,
-            seed,
+            reference_seed(rs.seed) ^ 0xe9,
             level.bakes_visibility(),
-        );
-        let centers = engine_view::centers_inside(&prepared.receivers);
-        (points, reference, centers)
+        )
     });
 
     let mut runs = Vec::new();
@@ -176,18 +165,10 @@ pub fn sweep(
         let fs = passes.sheared_stats.as_ref();
         // What the engine reads: the run's lightmap stage and encode (not
         // timed: shared), looked up at the points.
-        let engine_view = match &engine {
-            Some((points, reference, centers)) => {
+        let engine_view = match &probe {
+            Some(probe) => {
                 let out = prepared.finish(&passes, &s, &run, &mut StageTimer::new())?;
-                let decoded = crate::encode::decode(&out.encoded)?;
-                Some(engine_view::measure(
-                    points,
-                    &decoded,
-                    reference,
-                    centers,
-                    &level.visibility_meshes,
-                    out.encoded.visibility.as_ref().map_or(0, |v| v.scale.len()),
-                ))
+                Some(prepared.engine_view_against(probe, &out.encoded)?)
             }
             None => None,
         };

@@ -148,15 +148,14 @@ pub fn assign(texels: &[f64], count: u32) -> Vec<Vec<u32>> {
 /// A 64-bit hash of bytes (splitmix-style, over 8-byte words), for the
 /// fingerprint: not cryptographic, only to tell files and settings apart.
 pub fn hash64(bytes: &[u8]) -> u64 {
-    let mix = mix64;
     let mut h = 0x9E37_79B9_7F4A_7C15u64 ^ bytes.len() as u64;
     let mut chunks = bytes.chunks_exact(8);
     for c in &mut chunks {
-        h = mix(h ^ u64::from_le_bytes(c.try_into().expect("8 bytes")));
+        h = mix64(h ^ u64::from_le_bytes(c.try_into().expect("8 bytes")));
     }
     let mut last = [0u8; 8];
     last[..chunks.remainder().len()].copy_from_slice(chunks.remainder());
-    mix(h ^ u64::from_le_bytes(last) ^ 0xFF)
+    mix64(h ^ u64::from_le_bytes(last) ^ 0xFF)
 }
 
 /// What identifies a bake for its shards: this aobake, the input's bytes,

@@ -36,10 +36,10 @@ use serde::Serialize;
 
 pub mod relight;
 
-use relight::{environments, lookup_layer, relight_error};
+use relight::{environments, relight_error};
 
 use super::Lightmap;
-use super::seams::metric::taps;
+use super::seams::metric::{bilinear, taps};
 
 /// Surface points of a page, uniform by world area: each a receiver (for
 /// the reference) with its lightmap UV.
@@ -178,16 +178,10 @@ pub fn centers_inside(receivers: &Receivers) -> Vec<bool> {
 /// The bilinear lookup of every channel at `uv` (glTF conventions, clamp to
 /// edge): AO and the 9 SH coefficients.
 pub fn lookup(lm: &Lightmap, uv: [f32; 2]) -> (f32, [f32; SH_COUNT]) {
-    let mut ao = 0.0;
-    let mut sh = [0.0; SH_COUNT];
-    for (t, w) in taps(uv, lm.width, lm.height) {
-        let t = t as usize;
-        ao += w * lm.ao[t];
-        for (c, v) in sh.iter_mut().zip(&lm.sh[t]) {
-            *c += w * v;
-        }
-    }
-    (ao, sh)
+    let ao = (taps(uv, lm.width, lm.height).iter())
+        .map(|&(t, w)| w * lm.ao[t as usize])
+        .sum();
+    (ao, bilinear(&lm.sh, lm.width, lm.height, uv))
 }
 
 /// The error of one class of points.
@@ -302,7 +296,7 @@ pub fn measure(
             .is_some_and(|&m| layer_meshes.get(m as usize).copied().unwrap_or(false));
         let relight = match layer {
             Some((v, rv)) if has_layer => {
-                let got = lookup_layer(v, lm.width, lm.height, uv);
+                let got = bilinear(v, lm.width, lm.height, uv);
                 let mut want = rv[k];
                 want[layer_count.min(VIS_COUNT)..].fill(0.0);
                 let n = points.receivers.normal[k];

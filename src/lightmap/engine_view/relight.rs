@@ -8,7 +8,6 @@
 //! [`environments`].
 
 use crate::bits::{mix64, unit};
-use crate::lightmap::seams::metric::taps;
 use crate::relight::{Environment, anchored_diffuse};
 use crate::sample::Frame;
 use crate::sh::{self, SH_COUNT, VIS_COUNT};
@@ -52,22 +51,6 @@ pub fn environments() -> Vec<Environment> {
             Environment::new(l)
         })
         .collect()
-}
-
-/// The bilinear lookup of the visibility layer at `uv`.
-pub fn lookup_layer(
-    v: &[[f32; VIS_COUNT]],
-    width: u32,
-    height: u32,
-    uv: [f32; 2],
-) -> [f32; VIS_COUNT] {
-    let mut out = [0.0; VIS_COUNT];
-    for (t, w) in taps(uv, width, height) {
-        for (o, x) in out.iter_mut().zip(&v[t as usize]) {
-            *o += w * x;
-        }
-    }
-    out
 }
 
 /// The mean relight error at one point (see the module doc): the engine's
