@@ -11,13 +11,16 @@ fn aobake(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
-/// The README's ```console blocks that start with `$ aobake ...`: the
-/// arguments and the text after the command line.
+/// The ```console blocks of the README and docs/usage.md (the
+/// subcommands') that start with `$ aobake ...`: the arguments and the
+/// text after the command line.
 fn readme_blocks() -> Vec<(Vec<String>, String)> {
-    let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let read = |p: &str| {
+        std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(p)).unwrap()
+    };
+    let text = read("README.md") + &read("docs/usage.md");
     let mut out = Vec::new();
-    for block in readme.split("```console\n").skip(1) {
+    for block in text.split("```console\n").skip(1) {
         let block = &block[..block.find("```").expect("a closed block")];
         let (first, rest) = block.split_once('\n').unwrap_or((block, ""));
         if let Some(cmd) = first.strip_prefix("$ aobake") {
@@ -39,7 +42,7 @@ fn the_readme_usage_is_the_programs_help() {
     ] {
         assert!(
             blocks.iter().any(|(a, _)| *a == expected),
-            "the README has no block for aobake {}",
+            "neither the README nor docs/usage.md has a block for aobake {}",
             expected.join(" ")
         );
     }
@@ -51,7 +54,7 @@ fn the_readme_usage_is_the_programs_help() {
         assert_eq!(
             help,
             text,
-            "the README's block for `aobake {}` differs from the program's output",
+            "the block for `aobake {}` differs from the program's output (python3 tools/readme-usage.py)",
             args.join(" ")
         );
     }

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Rewrites the README's usage blocks (```console blocks starting with
-`$ aobake ...`) from the program's own output, which tests/cli.rs checks.
+"""Rewrites the usage blocks of README.md and docs/usage.md (```console
+blocks starting with `$ aobake ...`) from the program's own output, which
+tests/cli.rs checks.
 
     cargo build && python3 tools/readme-usage.py [target/debug/aobake]
 """
@@ -10,8 +11,7 @@ import sys
 from pathlib import Path
 
 binary = sys.argv[1] if len(sys.argv) > 1 else "target/debug/aobake"
-readme = Path(__file__).resolve().parent.parent / "README.md"
-text = readme.read_text()
+root = Path(__file__).resolve().parent.parent
 
 
 def block(match):
@@ -20,5 +20,6 @@ def block(match):
     return f"```console\n$ aobake {' '.join(args)}\n{out}```"
 
 
-text = re.sub(r"```console\n\$ aobake ([^\n]*)\n.*?```", block, text, flags=re.S)
-readme.write_text(text)
+for page in [root / "README.md", root / "docs" / "usage.md"]:
+    text = re.sub(r"```console\n\$ aobake ([^\n]*)\n.*?```", block, page.read_text(), flags=re.S)
+    page.write_text(text)
