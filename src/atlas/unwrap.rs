@@ -32,6 +32,9 @@ pub struct UnwrapOptions {
     /// Empty texels around each chart (charts are `2 * padding` apart).
     pub padding: u32,
     pub packing: Packing,
+    /// Smallest chart width in texels (0: none); see
+    /// `BakeSettings::min_chart_width`.
+    pub min_chart_width: f32,
 }
 
 /// Chart packing: `Fast` (rows; measured 6x faster on Sponza, 13x on 27k
@@ -266,6 +269,7 @@ pub fn unwrap_with_progress(
             Packing::Fast => uvunwrap::Packing::Fast,
             Packing::Shape => uvunwrap::Packing::Shape,
         },
+        min_chart_width: options.min_chart_width,
         ..Default::default()
     };
     let generate = |opts: &uvunwrap::Options| {

@@ -112,6 +112,7 @@ impl Level {
                     size,
                     padding: s.padding,
                     packing: s.packing,
+                    min_chart_width: s.min_chart_width,
                 };
                 let pb = progress_bar(run.progress, 0, "unwrap");
                 let report = |stage: &'static str, done: usize, total: Option<usize>| {

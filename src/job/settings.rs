@@ -113,6 +113,12 @@ pub struct BakeSettings {
     /// Empty texels around each chart
     #[arg(long, value_name = "P", default_value_t = Self::DEFAULT.padding)]
     pub padding: u32,
+    /// Smallest chart width in texels: a generated chart narrower than this
+    /// across its bounding rectangle is stretched to it, so that bilinear
+    /// lookups on it read texels of its own (0: charts keep their shape)
+    #[arg(long, value_name = "W", default_value_t = Self::DEFAULT.min_chart_width)]
+    #[serde(default)]
+    pub min_chart_width: f32,
     /// Chart packing
     #[arg(long, value_enum, default_value_t = Self::DEFAULT.packing)]
     pub packing: Packing,
@@ -162,11 +168,16 @@ pub struct BakeSettings {
     pub seams: SeamMode,
 }
 
+/// Largest `--min-chart-width`: wider than the bilinear footprint (2
+/// texels) plus the padding on each side buys nothing.
+pub const MAX_MIN_CHART_WIDTH: f32 = 16.0;
+
 impl BakeSettings {
     /// Every setting's default.
     pub const DEFAULT: BakeSettings = BakeSettings {
         size: AtlasSize::Resolution(DEFAULT_RESOLUTION),
         padding: 2,
+        min_chart_width: 2.0,
         packing: Packing::Fast,
         uv: UvSource::Generate,
         // Adaptive: measured against 256-ray Monte Carlo on five scenes
@@ -265,6 +276,17 @@ impl BakeSettings {
             ));
         }
         crate::atlas::unwrap::check_size(self.size)?;
+        if !(self.min_chart_width.is_finite()
+            && (0.0..=MAX_MIN_CHART_WIDTH).contains(&self.min_chart_width))
+        {
+            return Err(Error::option(
+                "min_chart_width",
+                format!(
+                    "{} is outside 0..={MAX_MIN_CHART_WIDTH}",
+                    self.min_chart_width
+                ),
+            ));
+        }
         if let Some(d) = self.max_distance
             && !(d.is_finite() && d > 0.0)
         {

@@ -1,0 +1,91 @@
+//! Charts thinner than the bilinear footprint (issue 38, item 2): with the
+//! default `min_chart_width` a strip far narrower than a texel gets a chart
+//! two texels across, so every lookup on it reads at least one texel whose
+//! centre lies on the strip (no sliver-class point); with 0 it keeps its
+//! shape and most of its lookups read only texels of its edges.
+
+mod common;
+
+use aobake::job::{Level, RunOptions};
+use aobake::lightmap::engine_view::{self, TexelClass};
+use aobake::stage::StageTimer;
+use common::{glb, plain_nodes, quad, scene, settings};
+
+/// A 2 x 0.01 strip beside a 2 x 2 floor: at 64 texels the floor sets
+/// the density (~25 texels per unit), so the strip is ~0.25 texels wide.
+fn strip_and_floor() -> aobake::gltf::Scene {
+    let strip = quad([0.0, 3.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.005, 0.0], true);
+    let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    scene(&glb(&[strip, floor], plain_nodes(2)))
+}
+
+/// The strip's chart: its narrower UV extent in texels, and the share of
+/// 2000 points uniform on it whose four bilinear taps all lie outside
+/// every triangle (the engine view's sliver class).
+fn strip_chart(min_chart_width: f32) -> (f32, f64) {
+    let sc = strip_and_floor();
+    let s = aobake::BakeSettings {
+        min_chart_width,
+        ..settings(64, 16, None)
+    };
+    let mut timer = StageTimer::new();
+    let level = Level::new(&sc, &s, &RunOptions::QUIET, &mut timer).unwrap();
+    let page = level.page(0, &sc, &s, &mut timer).unwrap();
+    let (w, h) = (page.atlas.width, page.atlas.height);
+    let strip = &page.atlas.meshes[0];
+    let (lo, hi) = strip
+        .uv
+        .iter()
+        .fold(([f32::MAX; 2], [f32::MIN; 2]), |(lo, hi), p| {
+            (
+                [lo[0].min(p[0]), lo[1].min(p[1])],
+                [hi[0].max(p[0]), hi[1].max(p[1])],
+            )
+        });
+    let width = ((hi[0] - lo[0]) * w as f32).min((hi[1] - lo[1]) * h as f32);
+    let tris: Vec<_> =
+        aobake::atlas::rasterize::surface_triangles(&level.geometry.receivers, &page.atlas)
+            .into_iter()
+            .filter(|t| t.mesh == 0)
+            .collect();
+    let points = engine_view::surface_points(&tris, w, h, 2000, 3);
+    let centers = engine_view::centers_inside(&page.receivers);
+    let slivers = points
+        .uv
+        .iter()
+        .filter(|&&uv| engine_view::class_of(uv, w, h, &centers) == TexelClass::Sliver)
+        .count();
+    (width, slivers as f64 / points.uv.len() as f64)
+}
+
+#[test]
+fn a_strip_thinner_than_a_texel_gets_two_texels_of_its_own() {
+    let (width, slivers) = strip_chart(0.0);
+    assert!(width < 0.5, "unstretched strip {width} texels wide");
+    assert!(
+        slivers > 0.5,
+        "unstretched: {slivers} of the points are slivers"
+    );
+    let (width, slivers) = strip_chart(aobake::BakeSettings::DEFAULT.min_chart_width);
+    // Stretching lowers the automatic density a little: within 5%.
+    assert!(
+        (1.9..=2.1).contains(&width),
+        "stretched strip {width} texels wide"
+    );
+    assert_eq!(slivers, 0.0);
+}
+
+#[test]
+fn a_bad_minimum_width_is_refused_by_name() {
+    for bad in [-1.0, f32::NAN, f32::INFINITY, 17.0] {
+        let s = aobake::BakeSettings {
+            min_chart_width: bad,
+            ..settings(64, 16, None)
+        };
+        let e = s.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("min_chart_width") || e.contains("min-chart-width"),
+            "{e}"
+        );
+    }
+}
