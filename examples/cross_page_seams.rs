@@ -8,10 +8,10 @@
 use aobake::atlas::AtlasSize;
 use aobake::job::BakeSettings;
 use aobake::job::{Job, RunOptions};
-use aobake::lightmap::seams::SMOOTH_DEGREES;
 use aobake::lightmap::seams::SeamMode;
 use aobake::lightmap::seams::anchor::cross_page_jumps;
 use aobake::lightmap::seams::find::cross_page_seams;
+use aobake::lightmap::seams::{FLAT_DEGREES, SMOOTH_DEGREES};
 use aobake::stage::StageTimer;
 
 fn main() {
@@ -41,7 +41,12 @@ fn main() {
             ao[p.page as usize] = (lm.width, lm.height, lm.ao);
         })
         .expect("bake");
-        let seams = cross_page_seams(&level.geometry.receivers, &level.atlas, SMOOTH_DEGREES);
+        let seams = cross_page_seams(
+            &level.geometry.receivers,
+            &level.atlas,
+            SMOOTH_DEGREES,
+            FLAT_DEGREES,
+        );
         let mut jumps = cross_page_jumps(&seams, &level.atlas.pages, |p| {
             let (w, h, img) = &ao[p as usize];
             (*w, *h, img.as_slice())

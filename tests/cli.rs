@@ -82,7 +82,10 @@ fn help_texts_quote_the_library_constants() {
         "--visibility's help must say the scene's threshold {roughness}"
     );
     let degrees = aobake::lightmap::seams::SMOOTH_DEGREES;
-    assert!(flat.contains(&format!("within {degrees} degrees")));
+    let faces = aobake::lightmap::seams::FLAT_DEGREES;
+    assert!(flat.contains(&format!(
+        "vertex normals within {degrees} degrees, faces within {faces} degrees"
+    )));
     let defaults = aobake::BakeSettings::DEFAULT;
     assert!(flat.contains(&format!("--quality <Q> Adaptive: the bake's error is that of QUALITY-ray Monte Carlo (its predicted AO RMSE over the atlas) [default: {}]", defaults.adaptive.quality)));
     // Every method is listed with the name the library gives it.

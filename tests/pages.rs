@@ -387,7 +387,7 @@ fn cross_page_jump(
     seams: aobake::lightmap::seams::SeamMode,
 ) -> (usize, f64) {
     use aobake::lightmap::seams::{
-        SMOOTH_DEGREES, anchor::cross_page_jumps, find::cross_page_seams,
+        FLAT_DEGREES, SMOOTH_DEGREES, anchor::cross_page_jumps, find::cross_page_seams,
     };
     let s = aobake::BakeSettings {
         size: aobake::atlas::AtlasSize::TexelDensity {
@@ -410,7 +410,12 @@ fn cross_page_jump(
         ao[p.page as usize] = (out.lightmap.width, out.lightmap.height, out.lightmap.ao);
     })
     .unwrap();
-    let cross = cross_page_seams(&level.geometry.receivers, &level.atlas, SMOOTH_DEGREES);
+    let cross = cross_page_seams(
+        &level.geometry.receivers,
+        &level.atlas,
+        SMOOTH_DEGREES,
+        FLAT_DEGREES,
+    );
     let jumps = cross_page_jumps(&cross, &level.atlas.pages, |p| {
         let (w, h, img) = &ao[p as usize];
         (*w, *h, img.as_slice())

@@ -153,3 +153,60 @@ fn a_box_keeps_its_creases() {
     assert_eq!(on.report.seams.unwrap().seams, 0);
     assert_eq!(on.glb, off.glb);
 }
+
+#[test]
+fn a_box_shaded_smooth_keeps_its_creases() {
+    // The same box with one normal per corner (the corner's direction), so
+    // the two sides of every edge agree on their vertex normals, but their
+    // faces are 90 degrees apart: a crease of the contract's AO (each side
+    // sees its own face's plane), left as baked. Without the face test
+    // (`FLAT_DEGREES` 180) every one of its edges would be stitched.
+    let faces = [
+        quad([0.0, 0.0, 0.5], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true),
+        quad([0.0, 0.0, -0.5], [0.0, 0.5, 0.0], [0.5, 0.0, 0.0], true),
+        quad([0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.5], true),
+        quad([-0.5, 0.0, 0.0], [0.0, 0.0, 0.5], [0.0, 0.5, 0.0], true),
+        quad([0.0, 0.5, 0.0], [0.0, 0.0, 0.5], [0.5, 0.0, 0.0], true),
+        quad([0.0, -0.5, 0.0], [0.5, 0.0, 0.0], [0.0, 0.0, 0.5], true),
+    ];
+    let mut cube = merge(&faces);
+    cube.normals = Some(
+        cube.positions
+            .iter()
+            .map(|p| {
+                let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                p.map(|c| c / l)
+            })
+            .collect(),
+    );
+    let floor = quad([0.0, 0.0, -0.5], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0], true);
+    let sc = scene(&glb(&[cube, floor], plain_nodes(2)));
+    let s = settings(128, 16, None);
+    let mut timer = aobake::stage::StageTimer::new();
+    let level = aobake::job::Level::new(&sc, &s, &aobake::RunOptions::QUIET, &mut timer).unwrap();
+    let find = |faces: f32| {
+        aobake::lightmap::seams::find::smooth_seams(
+            &level.geometry.receivers,
+            &level.atlas,
+            aobake::lightmap::seams::SMOOTH_DEGREES,
+            faces,
+        )
+        .len()
+    };
+    assert!(
+        find(180.0) > 0,
+        "the corner normals make every cut edge smooth"
+    );
+    assert_eq!(find(aobake::lightmap::seams::FLAT_DEGREES), 0);
+    let on = aobake::bake_scene(&sc, &s).unwrap();
+    let off = aobake::bake_scene(
+        &sc,
+        &aobake::BakeSettings {
+            seams: SeamMode::Off,
+            ..s.clone()
+        },
+    )
+    .unwrap();
+    assert_eq!(on.report.seams.unwrap().seams, 0);
+    assert_eq!(on.glb, off.glb);
+}

@@ -19,7 +19,7 @@ use crate::job::settings::{
     VisibilityMode, estimated_bytes_with,
 };
 use crate::lightmap::seams::find::cross_page_seams;
-use crate::lightmap::seams::{CrossSeam, SMOOTH_DEGREES, SeamMode};
+use crate::lightmap::seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode};
 use crate::stage::{StageTimer, progress_bar};
 use crate::trace::Tracer;
 
@@ -181,7 +181,7 @@ impl Level {
         timer.lap("bvh");
         let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
         let cross_seams = if s.seams == SeamMode::Stitch && atlas.pages.len() > 1 {
-            cross_page_seams(&geometry.receivers, &atlas, SMOOTH_DEGREES)
+            cross_page_seams(&geometry.receivers, &atlas, SMOOTH_DEGREES, FLAT_DEGREES)
         } else {
             Vec::new()
         };

@@ -162,8 +162,8 @@ pub struct BakeSettings {
     /// SH order of the visibility layer: 3 (16 coefficients) or 2 (9)
     #[arg(long, value_name = "2|3", default_value_t = Self::DEFAULT.visibility_order)]
     pub visibility_order: u32,
-    /// Smooth seams (vertex normals within 10 degrees): stitched by least
-    /// squares, or left as baked
+    /// Smooth seams (vertex normals within 10 degrees, faces within 20
+    /// degrees): stitched by least squares, or left as baked
     #[arg(long, value_enum, default_value_t = Self::DEFAULT.seams)]
     pub seams: SeamMode,
 }

@@ -34,7 +34,7 @@ use crate::geometry::ReceiverMesh;
 use crate::sh::{SH_COUNT, VIS_COUNT};
 use crate::stage::StageTimer;
 use crate::trace::Tracer;
-use seams::{CrossSeam, SMOOTH_DEGREES, SeamMode, SeamReport};
+use seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode, SeamReport};
 
 /// Float lightmap images, row-major, row 0 at the top (glTF v = 0).
 #[derive(Clone, Debug)]
@@ -105,7 +105,7 @@ pub fn build(
             seam_maps: None,
         });
     }
-    let found = seams::find::smooth_seams(p.meshes, p.atlas, SMOOTH_DEGREES);
+    let found = seams::find::smooth_seams(p.meshes, p.atlas, SMOOTH_DEGREES, FLAT_DEGREES);
     let (w, h) = (lightmap.width, lightmap.height);
     let map = |lm: &Lightmap| {
         let points = seams::metric::points(&found, w, h, &lm.ao, &lm.sh);

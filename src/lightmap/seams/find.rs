@@ -4,8 +4,9 @@
 //! In: the [`ReceiverMesh`]es (bake space) and their [`Atlas`] charts.
 //! Out: one [`Seam`] per shared world edge whose two sides' vertex normals
 //! agree within a given angle at both ends (a smooth surface the unwrapper
-//! cut, or a mesh split by material or mirrored); creases (normals apart)
-//! keep their jump. Edges shared by more than two triangles (non-manifold)
+//! cut, or a mesh split by material or mirrored) and whose two faces'
+//! geometric normals agree within another; creases keep their jump, shaded
+//! smooth or not (see [`super::FLAT_DEGREES`]). Edges shared by more than two triangles (non-manifold)
 //! and zero-length edges are left out.
 
 use crate::atlas::Atlas;
@@ -147,11 +148,26 @@ fn edge_sides(meshes: &[ReceiverMesh], atlas: &Atlas) -> HashMap<([i64; 3], [i64
     edges
 }
 
+/// Whether two sides of an edge are one smooth surface: vertex normals
+/// within `normal_degrees` at both ends and face normals within
+/// `face_degrees`.
+fn smooth(a: &Side, b: &Side, normal_degrees: f32, face_degrees: f32) -> bool {
+    let (normal_cos, face_cos) = (
+        normal_degrees.to_radians().cos(),
+        face_degrees.to_radians().cos(),
+    );
+    (0..2).all(|e| a.normal[e].dot(b.normal[e]) >= normal_cos) && a.face.dot(b.face) >= face_cos
+}
+
 /// The smooth seams of `atlas` (see the module doc): vertex normals within
-/// `max_degrees` at both ends, both sides on one page (every seam of a
-/// one-page atlas).
-pub fn smooth_seams(meshes: &[ReceiverMesh], atlas: &Atlas, max_degrees: f32) -> Vec<Seam> {
-    let min_cos = max_degrees.to_radians().cos();
+/// `normal_degrees` at both ends, faces within `face_degrees`, both sides
+/// on one page (every seam of a one-page atlas).
+pub fn smooth_seams(
+    meshes: &[ReceiverMesh],
+    atlas: &Atlas,
+    normal_degrees: f32,
+    face_degrees: f32,
+) -> Vec<Seam> {
     let edges = edge_sides(meshes, atlas);
     let mut seams: Vec<Seam> = edges
         .into_values()
@@ -162,7 +178,7 @@ pub fn smooth_seams(meshes: &[ReceiverMesh], atlas: &Atlas, max_degrees: f32) ->
             let same_uv = (0..2).all(|e| {
                 (a.uv[e][0] - b.uv[e][0]).abs() < 1e-7 && (a.uv[e][1] - b.uv[e][1]).abs() < 1e-7
             });
-            let smooth = (0..2).all(|e| a.normal[e].dot(b.normal[e]) >= min_cos);
+            let smooth = smooth(a, b, normal_degrees, face_degrees);
             (!same_uv && smooth && a.page == b.page).then_some(Seam {
                 a: a.uv,
                 b: b.uv,
@@ -187,17 +203,16 @@ pub fn smooth_seams(meshes: &[ReceiverMesh], atlas: &Atlas, max_degrees: f32) ->
 pub fn cross_page_seams(
     meshes: &[ReceiverMesh],
     atlas: &Atlas,
-    max_degrees: f32,
+    normal_degrees: f32,
+    face_degrees: f32,
 ) -> Vec<CrossSeam> {
-    let min_cos = max_degrees.to_radians().cos();
     let mut seams: Vec<CrossSeam> = edge_sides(meshes, atlas)
         .into_values()
         .filter_map(|sides| {
             let [a, b] = sides.as_slice() else {
                 return None;
             };
-            let smooth = (0..2).all(|e| a.normal[e].dot(b.normal[e]) >= min_cos);
-            if !smooth || a.page == b.page {
+            if !smooth(a, b, normal_degrees, face_degrees) || a.page == b.page {
                 return None;
             }
             let (a, b) = if a.page < b.page { (a, b) } else { (b, a) };
