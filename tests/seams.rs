@@ -127,17 +127,23 @@ fn a_cut_through_a_cylinder_is_stitched_to_the_8_bit_level() {
     }
 }
 
-#[test]
-fn a_box_keeps_its_creases() {
-    // Six faces with their own flat normals: every shared edge is a crease.
-    let faces = [
+/// The six faces of a unit box centred on the origin, each with its own
+/// flat normals.
+fn box_faces() -> [MeshSpec; 6] {
+    [
         quad([0.0, 0.0, 0.5], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true),
         quad([0.0, 0.0, -0.5], [0.0, 0.5, 0.0], [0.5, 0.0, 0.0], true),
         quad([0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.5], true),
         quad([-0.5, 0.0, 0.0], [0.0, 0.0, 0.5], [0.0, 0.5, 0.0], true),
         quad([0.0, 0.5, 0.0], [0.0, 0.0, 0.5], [0.5, 0.0, 0.0], true),
         quad([0.0, -0.5, 0.0], [0.5, 0.0, 0.0], [0.0, 0.0, 0.5], true),
-    ];
+    ]
+}
+
+#[test]
+fn a_box_keeps_its_creases() {
+    // Six faces with their own flat normals: every shared edge is a crease.
+    let faces = box_faces();
     let floor = quad([0.0, 0.0, -0.5], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0], true);
     let sc = scene(&glb(&[merge(&faces), floor], plain_nodes(2)));
     let s = settings(128, 16, None);
@@ -161,14 +167,7 @@ fn a_box_shaded_smooth_keeps_its_creases() {
     // faces are 90 degrees apart: a crease of the contract's AO (each side
     // sees its own face's plane), left as baked. Without the face test
     // (`FLAT_DEGREES` 180) every one of its edges would be stitched.
-    let faces = [
-        quad([0.0, 0.0, 0.5], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true),
-        quad([0.0, 0.0, -0.5], [0.0, 0.5, 0.0], [0.5, 0.0, 0.0], true),
-        quad([0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.5], true),
-        quad([-0.5, 0.0, 0.0], [0.0, 0.0, 0.5], [0.0, 0.5, 0.0], true),
-        quad([0.0, 0.5, 0.0], [0.0, 0.0, 0.5], [0.5, 0.0, 0.0], true),
-        quad([0.0, -0.5, 0.0], [0.5, 0.0, 0.0], [0.0, 0.0, 0.5], true),
-    ];
+    let faces = box_faces();
     let mut cube = merge(&faces);
     cube.normals = Some(
         cube.positions
