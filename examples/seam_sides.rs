@@ -13,6 +13,7 @@ use aobake::job::{Job, RunOptions};
 use aobake::lightmap::seams::SeamMode;
 use aobake::lightmap::seams::find::smooth_seams;
 use aobake::lightmap::seams::metric::samples;
+use aobake::stage::StageTimer;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -114,5 +115,3 @@ fn main() {
     })
     .expect("bake");
 }
-
-use aobake::stage::StageTimer;

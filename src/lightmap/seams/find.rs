@@ -6,8 +6,8 @@
 //! agree within a given angle at both ends (a smooth surface the unwrapper
 //! cut, or a mesh split by material or mirrored) and whose two faces'
 //! geometric normals agree within another; creases keep their jump, shaded
-//! smooth or not (see [`super::FLAT_DEGREES`]). Edges shared by more than two triangles (non-manifold)
-//! and zero-length edges are left out.
+//! smooth or not (see [`super::FLAT_DEGREES`]). Edges shared by more than
+//! two triangles (non-manifold) and zero-length edges are left out.
 
 use crate::atlas::Atlas;
 use crate::geometry::ReceiverMesh;
@@ -148,15 +148,27 @@ fn edge_sides(meshes: &[ReceiverMesh], atlas: &Atlas) -> HashMap<([i64; 3], [i64
     edges
 }
 
-/// Whether two sides of an edge are one smooth surface: vertex normals
-/// within `normal_degrees` at both ends and face normals within
-/// `face_degrees`.
-fn smooth(a: &Side, b: &Side, normal_degrees: f32, face_degrees: f32) -> bool {
-    let (normal_cos, face_cos) = (
-        normal_degrees.to_radians().cos(),
-        face_degrees.to_radians().cos(),
-    );
-    (0..2).all(|e| a.normal[e].dot(b.normal[e]) >= normal_cos) && a.face.dot(b.face) >= face_cos
+/// When two sides of an edge are one smooth surface: the cosines of the
+/// largest angles between their vertex normals (at both ends) and between
+/// their faces' normals.
+#[derive(Clone, Copy)]
+struct Smooth {
+    normal_cos: f32,
+    face_cos: f32,
+}
+
+impl Smooth {
+    fn new(normal_degrees: f32, face_degrees: f32) -> Smooth {
+        Smooth {
+            normal_cos: normal_degrees.to_radians().cos(),
+            face_cos: face_degrees.to_radians().cos(),
+        }
+    }
+
+    fn holds(self, a: &Side, b: &Side) -> bool {
+        (0..2).all(|e| a.normal[e].dot(b.normal[e]) >= self.normal_cos)
+            && a.face.dot(b.face) >= self.face_cos
+    }
 }
 
 /// The smooth seams of `atlas` (see the module doc): vertex normals within
@@ -168,6 +180,7 @@ pub fn smooth_seams(
     normal_degrees: f32,
     face_degrees: f32,
 ) -> Vec<Seam> {
+    let smooth = Smooth::new(normal_degrees, face_degrees);
     let edges = edge_sides(meshes, atlas);
     let mut seams: Vec<Seam> = edges
         .into_values()
@@ -178,8 +191,7 @@ pub fn smooth_seams(
             let same_uv = (0..2).all(|e| {
                 (a.uv[e][0] - b.uv[e][0]).abs() < 1e-7 && (a.uv[e][1] - b.uv[e][1]).abs() < 1e-7
             });
-            let smooth = smooth(a, b, normal_degrees, face_degrees);
-            (!same_uv && smooth && a.page == b.page).then_some(Seam {
+            (!same_uv && smooth.holds(a, b) && a.page == b.page).then_some(Seam {
                 a: a.uv,
                 b: b.uv,
                 length: a.length,
@@ -206,13 +218,14 @@ pub fn cross_page_seams(
     normal_degrees: f32,
     face_degrees: f32,
 ) -> Vec<CrossSeam> {
+    let smooth = Smooth::new(normal_degrees, face_degrees);
     let mut seams: Vec<CrossSeam> = edge_sides(meshes, atlas)
         .into_values()
         .filter_map(|sides| {
             let [a, b] = sides.as_slice() else {
                 return None;
             };
-            if !smooth(a, b, normal_degrees, face_degrees) || a.page == b.page {
+            if !smooth.holds(a, b) || a.page == b.page {
                 return None;
             }
             let (a, b) = if a.page < b.page { (a, b) } else { (b, a) };
