@@ -17,6 +17,7 @@ use crate::file;
 use crate::gltf::Scene;
 use crate::gltf::write::{self, BakeRecord, OutputOptions};
 use crate::job::settings::{BakeSettings, Method, RunOptions, UvSource};
+use crate::lightmap::BorderReport;
 use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
 use crate::lightmap::{self, Lightmap, PageBake};
@@ -53,6 +54,8 @@ pub struct PageOutput {
     pub encoded: Encoded,
     /// The seams before and after stitching (`--seams stitch`).
     pub seams: Option<SeamReport>,
+    /// The border fit's figures (`--border fit`).
+    pub border: Option<BorderReport>,
     /// The engine-view error (`--engine-view-points`).
     pub engine_view: Option<EngineView>,
 }
@@ -164,6 +167,7 @@ impl Page<'_> {
                 diagonal: level.geometry.space.diagonal,
             },
             s.seams,
+            s.border,
             debug_dir.is_some(),
             timer,
         )?;
@@ -196,6 +200,7 @@ impl Page<'_> {
             lightmap,
             encoded,
             seams: built.seams,
+            border: built.border,
             engine_view,
         })
     }

@@ -10,6 +10,7 @@ use crate::bake::adaptive::{self, AdaptiveStats};
 use crate::bake::sheared::{self, ShearedStats};
 use crate::encode::Encoded;
 use crate::job::settings::{BakeSettings, Method};
+use crate::lightmap::BorderReport;
 use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
 use crate::shard::Shard;
@@ -29,6 +30,7 @@ pub struct PageDone {
     pub adaptive: Option<AdaptiveReport>,
     pub sheared: Option<ShearedReport>,
     pub seams: Option<SeamReport>,
+    pub border: Option<BorderReport>,
     pub engine_view: Option<EngineView>,
     /// Seconds of the method's passes.
     pub pass_seconds: f64,
@@ -61,6 +63,7 @@ impl PageDone {
                 .as_ref()
                 .map(|f| ShearedReport::new(&s.sheared, f)),
             seams: out.seams,
+            border: out.border,
             engine_view: out.engine_view,
             pass_seconds: total(&passes.stages),
         }
@@ -110,6 +113,11 @@ pub struct Report {
     /// the solve (`--seams stitch`), with one page; per page in `pages`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamReport>,
+    /// The border fit (`--border fit`): points fitted, their rays and the
+    /// mean AO gap between lookups and traced values before and after, with
+    /// one page; per page in `pages`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub border: Option<BorderReport>,
     /// The error an engine shows (`--engine-view-points`): bilinear lookups
     /// of the written textures at surface points against a reference, by
     /// texel class, over every baked page; per page in `pages`.
@@ -146,6 +154,8 @@ pub struct PageReport {
     pub rays_cast: u64,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seams: Option<SeamReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub border: Option<BorderReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub engine_view: Option<EngineView>,
 }
@@ -310,6 +320,7 @@ pub fn level_report(
                 texels_inside: d.map_or(0, |d| d.texels_inside),
                 rays_cast: d.map_or(0, |d| d.rays),
                 seams: d.and_then(|d| d.seams),
+                border: d.and_then(|d| d.border),
                 engine_view: d.and_then(|d| d.engine_view),
             }
         })
@@ -358,6 +369,10 @@ pub fn level_report(
         ),
         seams: match done {
             [one] if level.page_count() == 1 => one.seams,
+            _ => None,
+        },
+        border: match done {
+            [one] if level.page_count() == 1 => one.border,
             _ => None,
         },
         rays_per_second: if pass_seconds > 0.0 {

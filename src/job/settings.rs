@@ -19,6 +19,7 @@ use crate::bake::adaptive::AdaptiveOptions;
 use crate::bake::sheared::ShearedOptions;
 use crate::error::{Error, Result};
 use crate::gltf::write::OcclusionMode;
+use crate::lightmap::BorderMode;
 use crate::lightmap::seams::SeamMode;
 use clap::{Arg, ArgAction, ArgMatches, Args, Command, FromArgMatches, ValueEnum};
 use serde::{Deserialize, Serialize};
@@ -166,6 +167,13 @@ pub struct BakeSettings {
     /// degrees): stitched by least squares, or left as baked
     #[arg(long, value_enum, default_value_t = Self::DEFAULT.seams)]
     pub seams: SeamMode,
+    /// The border band (texels next to a chart's edge, and its gutter):
+    /// fitted by least squares so that bilinear lookups at the chart's
+    /// surface points near its edge match values traced there, or left
+    /// holding their edge receivers' values
+    #[arg(long, value_enum, default_value_t = Self::DEFAULT.border)]
+    #[serde(default)]
+    pub border: BorderMode,
 }
 
 /// Largest `--min-chart-width`: wider than the bilinear footprint (2
@@ -193,6 +201,7 @@ impl BakeSettings {
         visibility: VisibilityMode::Auto,
         visibility_order: 3,
         seams: SeamMode::Stitch,
+        border: BorderMode::Fit,
     };
 }
 

@@ -13,13 +13,17 @@
 //!    geometry filled from their nearest valid receiver);
 //! 2. [`spread`](mod@spread): receiver results over the page through that
 //!    map;
-//! 3. [`seams`]: the two sides of every smooth seam stitched to agree
-//!    (within the page, and to a shared target across pages).
+//! 3. [`border`]: surface points of the border band's bilinear cells,
+//!    traced, for the texels there to be fitted to (`--border fit`);
+//! 4. [`seams`]: the two sides of every smooth seam stitched to agree
+//!    (within the page, and to a shared target across pages), solved in
+//!    one least-squares system with the border fit's points.
 //!
 //! A new post-bake stage goes into [`build`], between these, reading and
 //! writing the [`Lightmap`]. [`engine_view`] measures the result where an
 //! engine reads it (bilinear lookups at surface points).
 
+pub mod border;
 pub mod dilate;
 pub mod engine_view;
 pub mod seams;
@@ -27,14 +31,34 @@ pub mod spread;
 
 pub use spread::spread;
 
+use crate::atlas::rasterize::surface_triangles;
 use crate::atlas::{Atlas, PageSize, Receivers};
 use crate::bake::Bake;
+use crate::bits::mix64;
 use crate::error::Result;
 use crate::geometry::ReceiverMesh;
 use crate::sh::{SH_COUNT, VIS_COUNT};
 use crate::stage::StageTimer;
 use crate::trace::Tracer;
+pub use border::BorderMode;
 use seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode, SeamReport};
+use serde::Serialize;
+
+/// Mixed into the seed of the border fit's points and rays.
+const BORDER_SEED: u64 = 0xb0_4de4_f17e;
+
+/// What the border fit did on a page.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct BorderReport {
+    /// Points fitted (inside-geometry points left out).
+    pub points: usize,
+    /// Rays traced for their targets (the visibility layer's and the
+    /// inside test's not counted).
+    pub rays: u64,
+    /// Mean |AO lookup - AO traced| at them before and after the solve.
+    pub ao_before: f64,
+    pub ao_after: f64,
+}
 
 /// Float lightmap images, row-major, row 0 at the top (glTF v = 0).
 #[derive(Clone, Debug)]
@@ -80,16 +104,20 @@ pub struct Built {
     pub lightmap: Lightmap,
     /// The seams before and after stitching (`--seams stitch`).
     pub seams: Option<SeamReport>,
+    /// The border fit's figures (`--border fit`).
+    pub border: Option<BorderReport>,
     /// With `seam_maps`: the AO jump at the seams before and after
     /// stitching, one grey byte per texel ([`seams::jump_map`]).
     pub seam_maps: Option<[Vec<u8>; 2]>,
 }
 
-/// Runs the post-bake stages on one page: dilate, spread, stitch. Fails
-/// if a baked value is NaN or infinite (it must never reach a texture).
+/// Runs the post-bake stages on one page: dilate, spread, the border fit
+/// and the seams' stitch (one least-squares solve). Fails if a baked value
+/// is NaN or infinite (it must never reach a texture).
 pub fn build(
     p: &PageBake,
     seam_mode: SeamMode,
+    border_mode: BorderMode,
     seam_maps: bool,
     timer: &mut StageTimer,
 ) -> Result<Built> {
@@ -98,33 +126,59 @@ pub fn build(
     let fill = dilate::fill_map(r.width, r.height, &r.texel, p.inside);
     let mut lightmap = spread(r, p.bake, &fill)?;
     timer.lap("dilate");
-    if seam_mode == SeamMode::Off {
+    let (w, h) = (lightmap.width, lightmap.height);
+    let fitted = match border_mode {
+        BorderMode::Off => Vec::new(),
+        BorderMode::Fit => {
+            let free: Vec<bool> = (0..w * h)
+                .map(|t| !seams::interior(&lightmap.covered, w, h, t))
+                .collect();
+            let tris = surface_triangles(p.meshes, p.atlas);
+            let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
+            let layer = lightmap.visibility.is_some();
+            border::anchors(&tris, w, h, &free, p.tracer, p.max_distance, seed, layer)
+        }
+    };
+    if border_mode == BorderMode::Fit {
+        timer.lap("border points");
+    }
+    if seam_mode == SeamMode::Off && fitted.is_empty() {
         return Ok(Built {
             lightmap,
             seams: None,
+            border: None,
             seam_maps: None,
         });
     }
-    let found = seams::find::smooth_seams(p.meshes, p.atlas, SMOOTH_DEGREES, FLAT_DEGREES);
-    let (w, h) = (lightmap.width, lightmap.height);
+    let stitch = seam_mode == SeamMode::Stitch;
+    let found = match stitch {
+        true => seams::find::smooth_seams(p.meshes, p.atlas, SMOOTH_DEGREES, FLAT_DEGREES),
+        false => Vec::new(),
+    };
     let map = |lm: &Lightmap| {
         let points = seams::metric::points(&found, w, h, &lm.ao, &lm.sh);
         seams::jump_map(&points, w, h)
     };
-    let before = seam_maps.then(|| map(&lightmap));
+    let before = (seam_maps && stitch).then(|| map(&lightmap));
     // Seams to other pages: this side meets the target both compute.
-    let anchors = seams::anchor::anchors(
-        p.cross_seams,
-        p.page,
-        p.pages,
-        p.tracer,
-        p.max_distance,
-        p.seed,
-        lightmap.visibility.is_some(),
-    );
+    let anchors = match stitch {
+        true => seams::anchor::anchors(
+            p.cross_seams,
+            p.page,
+            p.pages,
+            p.tracer,
+            p.max_distance,
+            p.seed,
+            lightmap.visibility.is_some(),
+        ),
+        false => Vec::new(),
+    };
+    let gap = |lm: &Lightmap| seams::anchor_gap(&fitted, w, h, &lm.ao);
+    let fit_before = gap(&lightmap);
     let report = seams::stitch_page(
         &found,
         &anchors,
+        &fitted,
         p.diagonal,
         w,
         h,
@@ -133,11 +187,18 @@ pub fn build(
         &mut lightmap.sh,
         lightmap.visibility.as_deref_mut(),
     );
+    let border = (!fitted.is_empty()).then(|| BorderReport {
+        points: fitted.len(),
+        rays: fitted.len() as u64 * border::FIT_RAYS as u64,
+        ao_before: fit_before,
+        ao_after: gap(&lightmap),
+    });
     let seam_maps = before.map(|b| [b, map(&lightmap)]);
-    timer.lap("seams");
+    timer.lap(if stitch { "seams" } else { "border solve" });
     Ok(Built {
         lightmap,
-        seams: Some(report),
+        seams: stitch.then_some(report),
+        border,
         seam_maps,
     })
 }

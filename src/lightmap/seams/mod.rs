@@ -84,7 +84,7 @@ pub struct CrossPageFigures {
 }
 
 /// Mean |AO lookup - AO target| over `anchors`.
-fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f64 {
+pub fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f64 {
     let sum: f64 = anchors
         .iter()
         .map(|a| {
@@ -103,11 +103,13 @@ fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f64 {
 /// [`interior`] texels (by `covered`, the texels with a receiver of their
 /// own) keep their values; the others (border and gutter texels) move.
 /// `anchors`: this page's side of seams that cross pages
-/// ([`anchor::anchors`]), pulled to their targets.
+/// ([`anchor::anchors`]), pulled to their targets; `fitted`: the border
+/// fit's points ([`crate::lightmap::border`]), solved in the same system.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
     anchors: &[Anchor],
+    fitted: &[Anchor],
     diagonal: f64,
     width: u32,
     height: u32,
@@ -122,7 +124,14 @@ pub fn stitch_page(
     let (texels, values, solve) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
         let fixed = |t: u32| interior(covered, width, height, t);
-        solve::stitch(seams, anchors, width, height, channels, fixed, |t, out| {
+        let all: Vec<Anchor>;
+        let rows = if fitted.is_empty() {
+            anchors
+        } else {
+            all = anchors.iter().chain(fitted).cloned().collect();
+            &all
+        };
+        solve::stitch(seams, rows, width, height, channels, fixed, |t, out| {
             let t = t as usize;
             out[0] = ao[t];
             out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);

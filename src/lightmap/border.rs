@@ -1,0 +1,281 @@
+//! Border fit: the texels of a chart's border band take the values whose
+//! bilinear lookups match the signal at the chart's own surface points.
+//!
+//! In: a page's triangles ([`surface_triangles`]), which texels are free
+//! to move (the stitch's rule: every texel but the [`interior`] ones),
+//! the tracer. Out: [`Anchor`]s, one-sided constraints "the lookup at this
+//! UV reads this value", at surface points of every bilinear cell that has
+//! a free tap, with the contract's AO, SH (and visibility layer) traced at
+//! each point; the seams' solve ([`super::seams::solve::stitch`]) fits
+//! them together with the seams.
+//!
+//! Why: a texel whose centre lies outside its chart holds the value of the
+//! chart's point nearest its centre (up to 0.7 texels away), but every
+//! lookup reads it as if it were the value at its centre; where the signal
+//! bends within a texel (contact darkening along a chart's edge) the
+//! bilinear reconstruction between it and the chart's inside texels is
+//! wrong all across the border band. Kavan, Bargteil and Sloan, "Least
+//! Squares Vertex Baking" (EGSR 2011), fit the stored values to the signal
+//! through the reconstruction instead: minimise the integral over the
+//! surface of (f - Sum_t phi_t x_t)^2, with phi_t each texel's bilinear hat
+//! clipped to its chart. Here the integral is a quadrature over a jittered
+//! grid of [`GRID`] x [`GRID`] points per texel of UV area (equal
+//! weights), restricted to the cells where something can move, with f
+//! traced at each point by [`FIT_RAYS`]-ray Monte Carlo.
+//!
+//! Points inside geometry (the contract's rule, [`validity`]) are left
+//! out: no camera sees them and their traced value is black. A triangle
+//! too small to hold a grid point in a cell with a free tap gets one at
+//! its centroid, so sliver triangles are fitted too.
+
+use super::seams::Anchor;
+use crate::atlas::Receivers;
+use crate::atlas::rasterize::{SurfaceTri, closest_point_barycentric};
+use crate::bake::{BakeParams, mc, validity, visibility};
+use crate::bits::{mix64, unit};
+use crate::sh::{SH_COUNT, VIS_COUNT};
+use crate::trace::Tracer;
+use glam::Vec2;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Quadrature points per texel edge: GRID^2 points per texel of UV area.
+pub const GRID: u32 = 2;
+
+/// Rays of each fitted point's target.
+pub const FIT_RAYS: u32 = 64;
+
+/// Whether the border band is fitted (`--border`): `Fit`, the fit of
+/// [`anchors`] solved with the seams, or `Off`, border texels keeping
+/// their edge receivers' values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum BorderMode {
+    #[default]
+    Fit,
+    Off,
+}
+
+/// A surface point of the fit: its UV in texels and where it lies.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FitPoint {
+    /// Lightmap position in texel units of the page.
+    pub uv: Vec2,
+    /// Its triangle (index into the page's triangles) and barycentrics.
+    pub tri: u32,
+    pub bary: [f32; 3],
+}
+
+/// Whether the bilinear cell of a lookup at `uv` (texel units) has a
+/// free tap (`free` per texel of a `width` x `height` page).
+pub fn cell_has_free(uv: Vec2, width: u32, height: u32, free: &[bool]) -> bool {
+    let x0 = (uv.x - 0.5).floor();
+    let y0 = (uv.y - 0.5).floor();
+    let clamp = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1);
+    let (xa, xb) = (clamp(x0, width), clamp(x0 + 1.0, width));
+    let (ya, yb) = (clamp(y0, height), clamp(y0 + 1.0, height));
+    [(xa, ya), (xb, ya), (xa, yb), (xb, yb)]
+        .iter()
+        .any(|&(x, y)| free[(y * width + x) as usize])
+}
+
+/// The grid point of global grid cell (`gx`, `gy`): jittered in its cell
+/// of 1 / [`GRID`] texels, the same wherever it is asked for.
+fn grid_point(gx: i64, gy: i64, seed: u64) -> Vec2 {
+    let key = mix64(seed ^ mix64((gx as u64) << 32 ^ (gy as u64 & 0xffff_ffff)));
+    let g = GRID as f32;
+    Vec2::new(
+        (gx as f32 + unit(key)) / g,
+        (gy as f32 + unit(key ^ 0x5bd1_e995)) / g,
+    )
+}
+
+/// Whether `p` is inside triangle `t` (either winding; edges included).
+fn inside(p: Vec2, t: &[Vec2; 3]) -> bool {
+    let e = |a: Vec2, b: Vec2| (b - a).perp_dot(p - a);
+    let (e0, e1, e2) = (e(t[0], t[1]), e(t[1], t[2]), e(t[2], t[0]));
+    (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
+}
+
+/// The fit's points on `tris` (one page's, `width` x `height`): every
+/// grid point inside a triangle whose cell has a free tap, and the
+/// centroid of a triangle holding none such but whose centroid's cell
+/// has one. In triangle order, deterministic for `seed`.
+pub fn points(
+    tris: &[SurfaceTri],
+    width: u32,
+    height: u32,
+    free: &[bool],
+    seed: u64,
+) -> Vec<FitPoint> {
+    let g = GRID as f32;
+    let per_tri: Vec<Vec<FitPoint>> = tris
+        .par_iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let mut out = Vec::new();
+            let lo = t.uv.iter().fold(Vec2::INFINITY, |a, &p| a.min(p));
+            let hi = t.uv.iter().fold(Vec2::NEG_INFINITY, |a, &p| a.max(p));
+            if !(lo.is_finite() && hi.is_finite()) {
+                return out;
+            }
+            let (gx0, gy0) = ((lo.x * g).floor() as i64, (lo.y * g).floor() as i64);
+            let (gx1, gy1) = ((hi.x * g).floor() as i64, (hi.y * g).floor() as i64);
+            for gy in gy0..=gy1 {
+                for gx in gx0..=gx1 {
+                    let p = grid_point(gx, gy, seed);
+                    if inside(p, &t.uv) && cell_has_free(p, width, height, free) {
+                        let (bary, _) = closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2]);
+                        out.push(FitPoint {
+                            uv: p,
+                            tri: i as u32,
+                            bary,
+                        });
+                    }
+                }
+            }
+            let centroid = (t.uv[0] + t.uv[1] + t.uv[2]) / 3.0;
+            let any =
+                (gy0..=gy1).any(|gy| (gx0..=gx1).any(|gx| inside(grid_point(gx, gy, seed), &t.uv)));
+            if !any && cell_has_free(centroid, width, height, free) {
+                let third = 1.0 / 3.0;
+                out.push(FitPoint {
+                    uv: centroid,
+                    tri: i as u32,
+                    bary: [third; 3],
+                });
+            }
+            out
+        })
+        .collect();
+    per_tri.into_iter().flatten().collect()
+}
+
+/// The anchors of a page's border band: [`points`] on `tris` traced with
+/// [`FIT_RAYS`] rays (AO, SH, and with `layer` the visibility layer's
+/// coefficients after them), inside-geometry points left out. `seed`: the
+/// page's own (its points and rays depend on nothing else).
+#[allow(clippy::too_many_arguments)]
+pub fn anchors(
+    tris: &[SurfaceTri],
+    width: u32,
+    height: u32,
+    free: &[bool],
+    tracer: &Tracer,
+    max_distance: f32,
+    seed: u64,
+    layer: bool,
+) -> Vec<Anchor> {
+    let points = points(tris, width, height, free, seed);
+    if points.is_empty() {
+        return Vec::new();
+    }
+    let mut r = Receivers {
+        width,
+        height,
+        ..Default::default()
+    };
+    for (k, p) in points.iter().enumerate() {
+        let t = &tris[p.tri as usize];
+        let (pos, n, geo) = t.at(p.bary);
+        r.texel.push(k as u32);
+        r.position.push(pos);
+        r.normal.push(n);
+        r.geo_normal.push(geo);
+        r.footprint.push(t.footprint);
+        r.center_inside.push(true);
+    }
+    let params = BakeParams { max_distance, seed };
+    let inside = validity::inside_geometry(&r, tracer, max_distance, seed);
+    let bake = mc::bake(&r, tracer, FIT_RAYS, &params, &|_| {});
+    let v = layer.then(|| visibility::bake(&r, tracer, FIT_RAYS, &params).v);
+    let (w, h) = (width as f32, height as f32);
+    points
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| !inside[k])
+        .map(|(k, p)| {
+            let mut target = Vec::with_capacity(1 + SH_COUNT + VIS_COUNT);
+            target.push(bake.ao[k]);
+            target.extend_from_slice(&bake.sh[k]);
+            if let Some(v) = &v {
+                target.extend_from_slice(&v[k]);
+            }
+            Anchor {
+                uv: [p.uv.x / w, p.uv.y / h],
+                target,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn square(w: f32) -> Vec<SurfaceTri> {
+        // A w x w texel square at (2, 2), as two triangles.
+        let c = [
+            Vec2::new(2.0, 2.0),
+            Vec2::new(2.0 + w, 2.0),
+            Vec2::new(2.0 + w, 2.0 + w),
+            Vec2::new(2.0, 2.0 + w),
+        ];
+        let p = c.map(|c| Vec3::new(c.x, c.y, 0.0));
+        [[0, 1, 2], [0, 2, 3]]
+            .iter()
+            .map(|i| SurfaceTri {
+                mesh: 0,
+                uv: i.map(|k| c[k]),
+                pos: i.map(|k| p[k]),
+                nrm: None,
+                geo: Vec3::Z,
+                footprint: 1.0,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn grid_points_are_the_same_from_either_triangle() {
+        assert_eq!(grid_point(7, -3, 11), grid_point(7, -3, 11));
+        let p = grid_point(7, -3, 11);
+        assert!(p.x >= 3.5 && p.x < 4.0 && p.y >= -1.5 && p.y < -1.0, "{p}");
+    }
+
+    #[test]
+    fn points_cover_the_cells_with_a_free_tap_at_the_grid_density() {
+        // A 6 x 6 texel square on a 10 x 10 page, every texel free: its
+        // area times GRID^2 points, each once.
+        let tris = square(6.0);
+        let all = vec![true; 100];
+        let pts = points(&tris, 10, 10, &all, 3);
+        let expected = 36.0 * (GRID * GRID) as f32;
+        assert!((pts.len() as f32 - expected).abs() <= 2.0, "{}", pts.len());
+        // No texel free: no point.
+        assert!(points(&tris, 10, 10, &[false; 100], 3).is_empty());
+        // Only texel (2, 2) free: points only in the four cells around its
+        // centre (2.5, 2.5), i.e. within one texel of it.
+        let mut one = vec![false; 100];
+        one[2 * 10 + 2] = true;
+        let pts = points(&tris, 10, 10, &one, 3);
+        assert!(!pts.is_empty());
+        for p in &pts {
+            assert!(
+                (p.uv - Vec2::splat(2.5)).abs().max_element() <= 1.0,
+                "{p:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_triangle_smaller_than_the_grid_gets_its_centroid() {
+        let tris = square(0.05);
+        let all = vec![true; 100];
+        let pts = points(&tris, 10, 10, &all, 3);
+        assert_eq!(pts.len(), 2, "{pts:?}");
+        for p in &pts {
+            assert_eq!(p.bary, [1.0 / 3.0; 3]);
+        }
+    }
+}
