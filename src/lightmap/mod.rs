@@ -136,7 +136,8 @@ pub fn build(
             let tris = surface_triangles(p.meshes, p.atlas);
             let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
             let layer = lightmap.visibility.is_some();
-            border::anchors(&tris, w, h, &free, p.tracer, p.max_distance, seed, layer)
+            let (tracer, d) = (p.tracer, p.max_distance);
+            border::anchors(&tris, w, h, &free, tracer, d, seed, layer)
         }
     };
     if border_mode == BorderMode::Fit {
@@ -175,10 +176,15 @@ pub fn build(
     };
     let gap = |lm: &Lightmap| seams::anchor_gap(&fitted, w, h, &lm.ao);
     let fit_before = gap(&lightmap);
+    let seam_scale = match border_mode {
+        BorderMode::Fit => border::SEAM_SCALE,
+        BorderMode::Off => 1.0,
+    };
     let report = seams::stitch_page(
         &found,
         &anchors,
         &fitted,
+        seam_scale,
         p.diagonal,
         w,
         h,

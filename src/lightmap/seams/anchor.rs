@@ -160,6 +160,7 @@ pub fn anchors(
             out.push(Anchor {
                 uv: seam.at(side, t),
                 target,
+                weight: 1.0,
             });
         }
     }

@@ -104,12 +104,14 @@ pub fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f6
 /// own) keep their values; the others (border and gutter texels) move.
 /// `anchors`: this page's side of seams that cross pages
 /// ([`anchor::anchors`]), pulled to their targets; `fitted`: the border
-/// fit's points ([`crate::lightmap::border`]), solved in the same system.
+/// fit's points ([`crate::lightmap::border`]), solved in the same system,
+/// where a seam's rows are scaled by `seam_scale`.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
     anchors: &[Anchor],
     fitted: &[Anchor],
+    seam_scale: f64,
     diagonal: f64,
     width: u32,
     height: u32,
@@ -131,7 +133,8 @@ pub fn stitch_page(
             all = anchors.iter().chain(fitted).cloned().collect();
             &all
         };
-        solve::stitch(seams, rows, width, height, channels, fixed, |t, out| {
+        let (w, h, scale) = (width, height, seam_scale);
+        solve::stitch(seams, rows, w, h, scale, channels, fixed, |t, out| {
             let t = t as usize;
             out[0] = ao[t];
             out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);
@@ -141,8 +144,32 @@ pub fn stitch_page(
         })
     };
     let mut visibility = visibility;
+    // With the border fit, the solve keeps every channel within the range
+    // the page held before it: the encoding's scale and offset cover each
+    // coefficient's range over the page, and a gutter texel extrapolated
+    // past it would coarsen every texel's quantization (Sponza 1024,
+    // interior SH RMSE 0.0035 -> 0.0065 without this).
+    let range = (!fitted.is_empty()).then(|| {
+        let mut lo = vec![f32::INFINITY; channels];
+        let mut hi = vec![f32::NEG_INFINITY; channels];
+        for t in 0..ao.len() {
+            let vis = visibility.as_deref().map_or(&[][..], |v| &v[t][..]);
+            let all = std::iter::once(&ao[t]).chain(&sh[t]).chain(vis);
+            for (c, &x) in all.enumerate() {
+                lo[c] = lo[c].min(x);
+                hi[c] = hi[c].max(x);
+            }
+        }
+        (lo, hi)
+    });
+    let mut clamped = Vec::new();
     for (k, &t) in texels.iter().enumerate() {
-        let (t, at) = (t as usize, &values[k * channels..(k + 1) * channels]);
+        let (t, mut at) = (t as usize, &values[k * channels..(k + 1) * channels]);
+        if let Some((lo, hi)) = &range {
+            clamped.clear();
+            clamped.extend((0..channels).map(|c| at[c].clamp(lo[c], hi[c])));
+            at = &clamped;
+        }
         ao[t] = at[0].clamp(0.0, 1.0);
         sh[t].copy_from_slice(&at[1..1 + SH_COUNT]);
         // c0 = Y0 AO holds for every baked and target value, so for the

@@ -64,6 +64,8 @@ struct Row {
     fixed: Vec<(u32, f64)>,
     /// For a one-sided constraint: the [`Anchor`] its lookup must meet.
     anchor: Option<usize>,
+    /// The row's scale (its weight: the anchor's, or 1).
+    scale: f64,
 }
 
 /// A one-sided constraint: the page's bilinear lookup at `uv` should
@@ -73,6 +75,10 @@ struct Row {
 pub struct Anchor {
     pub uv: [f32; 2],
     pub target: Vec<f32>,
+    /// The row's weight relative to a two-sided seam row's
+    /// ([`SEAM_WEIGHT`]): cross-page anchors 1, the border fit's points
+    /// [`crate::lightmap::border::FIT_WEIGHT`].
+    pub weight: f32,
 }
 
 /// The stitched values of a `width` x `height` page along `seams`:
@@ -91,6 +97,7 @@ pub fn stitch(
     anchors: &[Anchor],
     width: u32,
     height: u32,
+    seam_scale: f64,
     channels: usize,
     fixed: impl Fn(u32) -> bool,
     baked: impl Fn(u32, &mut [f32]) + Sync,
@@ -99,31 +106,33 @@ pub fn stitch(
     let mut unknown_of: HashMap<u32, u32> = HashMap::new();
     let mut texel_of: Vec<u32> = Vec::new();
     let mut rows: Vec<Row> = Vec::new();
-    // Two-sided points (side A positive, side B negative), then anchors.
+    // Two-sided points (side A positive, side B negative), then anchors:
+    // each a row's taps (texel, weight), its anchor and scale.
+    let tapped = |uv: [f32; 2], scale: f64| {
+        taps(uv, width, height)
+            .into_iter()
+            .map(move |(t, w)| (t, scale * w as f64))
+    };
     let two_sided = seams.iter().flat_map(|seam| {
         samples(seam, width, height, POINTS_PER_TEXEL).map(move |t| {
             let (uva, uvb) = seam.at(t);
-            (uva, Some(uvb), None)
+            let both: Vec<(u32, f64)> = tapped(uva, seam_scale)
+                .chain(tapped(uvb, -seam_scale))
+                .collect();
+            (both, None, seam_scale)
         })
     });
-    let one_sided = anchors
-        .iter()
-        .enumerate()
-        .map(|(k, a)| (a.uv, None, Some(k)));
-    for (uva, uvb, anchor) in two_sided.chain(one_sided) {
+    let one_sided = anchors.iter().enumerate().map(|(k, a)| {
+        let scale = a.weight as f64;
+        (tapped(a.uv, scale).collect(), Some(k), scale)
+    });
+    for (row_taps, anchor, scale) in two_sided.chain(one_sided) {
         let mut row = Row {
             anchor,
+            scale,
             ..Row::default()
         };
-        let a = taps(uva, width, height)
-            .into_iter()
-            .map(|(t, w)| (t, w as f64));
-        let b = uvb
-            .map(|uv| taps(uv, width, height))
-            .into_iter()
-            .flatten()
-            .map(|(t, w)| (t, -(w as f64)));
-        for (texel, w) in a.chain(b) {
+        for (texel, w) in row_taps {
             if w == 0.0 {
                 continue;
             }
@@ -213,7 +222,7 @@ pub fn stitch(
                     }
                     if let Some(a) = rows[r].anchor {
                         for (k, v) in k.iter_mut().zip(&anchors[a].target) {
-                            *k -= *v as f64;
+                            *k -= rows[r].scale * *v as f64;
                         }
                     }
                     (free, k)
@@ -397,6 +406,7 @@ mod tests {
             &[],
             w,
             h,
+            1.0,
             1,
             |_| false,
             |t, out| out[0] = values[t as usize],
@@ -430,6 +440,7 @@ mod tests {
             .map(|i| Anchor {
                 uv: [4.0 / 16.0, (2.0 + 12.0 * (i as f32 + 0.5) / 24.0) / 16.0],
                 target: vec![0.3],
+                weight: 1.0,
             })
             .collect();
         let (texels, new, stats) = stitch(
@@ -437,6 +448,7 @@ mod tests {
             &anchors,
             w,
             h,
+            1.0,
             1,
             |t| t % w < 3,
             |t, out| out[0] = values[t as usize],
