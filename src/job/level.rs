@@ -57,6 +57,9 @@ pub struct Page<'a> {
     /// without the fill; `None` when the method finds them itself (the
     /// adaptive method, in its pre-pass).
     pub inside: Option<Vec<bool>>,
+    /// The border fit traced for this page, kept for runs that bake it
+    /// again ([`crate::lightmap::border::FitTargets`]).
+    pub fit_cache: crate::lightmap::border::FitCache,
 }
 
 impl Level {
@@ -280,6 +283,7 @@ impl Level {
             atlas,
             receivers,
             inside,
+            fit_cache: Default::default(),
         })
     }
 }

@@ -165,6 +165,7 @@ impl Page<'_> {
                 max_distance: level.max_distance,
                 seed: s.seed,
                 diagonal: level.geometry.space.diagonal,
+                fit_cache: Some(&self.fit_cache),
             },
             s.seams,
             s.border,

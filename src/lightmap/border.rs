@@ -45,6 +45,7 @@ pub const GRID: u32 = 2;
 /// Rays of each fitted point's target.
 pub const FIT_RAYS: u32 = 64;
 
+
 /// A fitted point's row weight relative to a seam row's (seams-only):
 /// the fit has ~4 rows per texel of the border band against each texel's
 /// data term of 1.
@@ -60,6 +61,21 @@ pub enum BorderMode {
     Fit,
     Off,
 }
+
+/// A page's traced fit (its [`anchors`]), kept by the page so that runs
+/// baking it again (`aobake report`'s sweep) trace it once: valid for the
+/// same free texels and layer.
+#[derive(Debug, Default)]
+pub struct FitTargets {
+    pub layer: bool,
+    pub free: Vec<bool>,
+    pub anchors: Vec<Anchor>,
+    /// Rays cast for them.
+    pub rays: u64,
+}
+
+/// Where a page keeps its [`FitTargets`].
+pub type FitCache = std::sync::Mutex<Option<std::sync::Arc<FitTargets>>>;
 
 /// A surface point of the fit: its UV in texels and where it lies.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -166,7 +182,8 @@ pub const SEAM_SCALE: f64 = 2.0;
 /// The anchors of a page's border band: [`points`] on `tris` traced with
 /// [`FIT_RAYS`] rays (AO, SH, and with `layer` the visibility layer's
 /// coefficients after them), inside-geometry points left out. `seed`: the
-/// page's own (its points and rays depend on nothing else).
+/// page's own (its points and rays depend on nothing else). Returns the
+/// anchors and the rays cast (the inside test's not counted).
 #[allow(clippy::too_many_arguments)]
 pub fn anchors(
     tris: &[SurfaceTri],
@@ -177,11 +194,10 @@ pub fn anchors(
     max_distance: f32,
     seed: u64,
     layer: bool,
-) -> Vec<Anchor> {
+) -> (Vec<Anchor>, u64) {
     let points = points(tris, width, height, free, seed);
-
     if points.is_empty() {
-        return Vec::new();
+        return (Vec::new(), 0);
     }
     let mut r = Receivers {
         width,
@@ -200,10 +216,11 @@ pub fn anchors(
     }
     let params = BakeParams { max_distance, seed };
     let inside = validity::inside_geometry(&r, tracer, max_distance, seed);
+    let (w, h) = (width as f32, height as f32);
+    let uv = |p: &FitPoint| [p.uv.x / w, p.uv.y / h];
     let bake = mc::bake(&r, tracer, FIT_RAYS, &params, &|_| {});
     let v = layer.then(|| visibility::bake(&r, tracer, FIT_RAYS, &params).v);
-    let (w, h) = (width as f32, height as f32);
-    points
+    let anchors = points
         .iter()
         .enumerate()
         .filter(|&(k, _)| !inside[k])
@@ -215,12 +232,13 @@ pub fn anchors(
                 target.extend_from_slice(&v[k]);
             }
             Anchor {
-                uv: [p.uv.x / w, p.uv.y / h],
+                uv: uv(p),
                 target,
                 weight: FIT_WEIGHT,
             }
         })
-        .collect()
+        .collect();
+    (anchors, bake.rays)
 }
 
 #[cfg(test)]

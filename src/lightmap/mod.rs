@@ -97,6 +97,8 @@ pub struct PageBake<'a> {
     pub seed: u64,
     /// The scene's bounding-box diagonal (bake units to world units).
     pub diagonal: f64,
+    /// The page's traced border fit from an earlier run, if any.
+    pub fit_cache: Option<&'a border::FitCache>,
 }
 
 /// What the lightmap stage made of a page.
@@ -127,23 +129,7 @@ pub fn build(
     let mut lightmap = spread(r, p.bake, &fill)?;
     timer.lap("dilate");
     let (w, h) = (lightmap.width, lightmap.height);
-    let fitted = match border_mode {
-        BorderMode::Off => Vec::new(),
-        BorderMode::Fit => {
-            let free: Vec<bool> = (0..w * h)
-                .map(|t| !seams::interior(&lightmap.covered, w, h, t))
-                .collect();
-            let tris = surface_triangles(p.meshes, p.atlas);
-            let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
-            let layer = lightmap.visibility.is_some();
-            let (tracer, d) = (p.tracer, p.max_distance);
-            border::anchors(&tris, w, h, &free, tracer, d, seed, layer)
-        }
-    };
-    if border_mode == BorderMode::Fit {
-        timer.lap("border points");
-    }
-    if seam_mode == SeamMode::Off && fitted.is_empty() {
+    if seam_mode == SeamMode::Off && border_mode == BorderMode::Off {
         return Ok(Built {
             lightmap,
             seams: None,
@@ -174,7 +160,60 @@ pub fn build(
         ),
         false => Vec::new(),
     };
-    let gap = |lm: &Lightmap| seams::anchor_gap(&fitted, w, h, &lm.ao);
+    // With the fit on, a cross-page seam's rows weigh as much as those of
+    // a seam within the page.
+    let anchors = match border_mode {
+        BorderMode::Fit => anchors
+            .into_iter()
+            .map(|a| seams::Anchor {
+                weight: border::SEAM_SCALE as f32,
+                ..a
+            })
+            .collect(),
+        BorderMode::Off => anchors,
+    };
+    // The border fit's points, traced (once per page and free texels).
+    let fit: Option<std::sync::Arc<border::FitTargets>> = match border_mode {
+        BorderMode::Off => None,
+        BorderMode::Fit => {
+            let free: Vec<bool> = (0..w * h)
+                .map(|t| !seams::interior(&lightmap.covered, w, h, t))
+                .collect();
+            let layer = lightmap.visibility.is_some();
+            let trace = |free: Vec<bool>| {
+                let tris = surface_triangles(p.meshes, p.atlas);
+                let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
+                let (tracer, d) = (p.tracer, p.max_distance);
+                let (anchors, rays) =
+                    border::anchors(&tris, w, h, &free, tracer, d, seed, layer);
+                std::sync::Arc::new(border::FitTargets {
+                    layer,
+                    free,
+                    anchors,
+                    rays,
+                })
+            };
+            let fit = match p.fit_cache {
+                None => trace(free),
+                Some(cache) => {
+                    let mut kept = cache.lock().unwrap_or_else(|e| e.into_inner());
+                    match &*kept {
+                        Some(t) if t.layer == layer && t.free == free => t.clone(),
+                        _ => {
+                            let t = trace(free);
+                            *kept = Some(t.clone());
+                            t
+                        }
+                    }
+                }
+            };
+            timer.lap("border points");
+            Some(fit)
+        }
+    };
+    let fitted: &[seams::Anchor] = fit.as_ref().map_or(&[], |f| &f.anchors);
+    let fit_rays = fit.as_ref().map_or(0, |f| f.rays);
+    let gap = |lm: &Lightmap| seams::anchor_gap(fitted, w, h, &lm.ao);
     let fit_before = gap(&lightmap);
     let seam_scale = match border_mode {
         BorderMode::Fit => border::SEAM_SCALE,
@@ -183,7 +222,7 @@ pub fn build(
     let report = seams::stitch_page(
         &found,
         &anchors,
-        &fitted,
+        fitted,
         seam_scale,
         p.diagonal,
         w,
@@ -195,7 +234,7 @@ pub fn build(
     );
     let border = (!fitted.is_empty()).then(|| BorderReport {
         points: fitted.len(),
-        rays: fitted.len() as u64 * border::FIT_RAYS as u64,
+        rays: fit_rays,
         ao_before: fit_before,
         ao_after: gap(&lightmap),
     });
