@@ -250,6 +250,9 @@ fn the_file_carries_the_layer_where_a_material_reads_it() {
     let sc = scene(&g);
     let s = aobake::BakeSettings {
         method: aobake::Method::Adaptive,
+        // The write path: every texel holds its receiver's values (the
+        // border fit moves the border band's: tests/border_fit.rs).
+        border: aobake::lightmap::BorderMode::Off,
         ..settings(64, 64, Some(0.5))
     };
     // auto: the glossy wall gets the layer, the rough floor does not.

@@ -45,7 +45,6 @@ pub const GRID: u32 = 2;
 /// Rays of each fitted point's target.
 pub const FIT_RAYS: u32 = 64;
 
-
 /// A fitted point's row weight relative to a seam row's (seams-only):
 /// the fit has ~4 rows per texel of the border band against each texel's
 /// data term of 1.
