@@ -64,6 +64,24 @@ impl Receivers {
         self.texel.is_empty()
     }
 
+    /// Appends the receiver at barycentrics `b` of triangle `t` (its
+    /// position, normals and footprint), keyed `texel`.
+    pub fn push_surface_point(
+        &mut self,
+        texel: u32,
+        t: &SurfaceTri,
+        b: [f32; 3],
+        center_inside: bool,
+    ) {
+        let (pos, n, geo) = t.at(b);
+        self.texel.push(texel);
+        self.position.push(pos);
+        self.normal.push(n);
+        self.geo_normal.push(geo);
+        self.footprint.push(t.footprint);
+        self.center_inside.push(center_inside);
+    }
+
     /// The receivers in `order` (`order[new] = old`, a permutation).
     pub fn permuted(&self, order: &[u32]) -> Receivers {
         fn pick<T: Copy + Send + Sync>(v: &[T], order: &[u32]) -> Vec<T> {
@@ -177,7 +195,8 @@ pub fn closest_point_barycentric(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> ([f32; 3
 }
 
 /// Whether p is inside (or on) triangle abc, by edge functions of either winding.
-fn inside(p: Vec2, t: &[Vec2; 3]) -> bool {
+/// Whether `p` is inside triangle `t` (either winding; edges included).
+pub fn inside(p: Vec2, t: &[Vec2; 3]) -> bool {
     let e = |a: Vec2, b: Vec2| (b - a).perp_dot(p - a);
     let (e0, e1, e2) = (e(t[0], t[1]), e(t[1], t[2]), e(t[2], t[0]));
     (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
@@ -302,15 +321,9 @@ fn rasterize_band(tris: &[SurfaceTri], list: &[u32], band: u32, w: u32, h: u32) 
         if !d2.is_finite() {
             continue;
         }
-        let t = &tris[ti as usize];
-        let (pos, n, geo) = t.at(b);
         let (x, y) = (i % w as usize, i / w as usize + y0 as usize);
-        out.texel.push((y * w as usize + x) as u32);
-        out.position.push(pos);
-        out.normal.push(n);
-        out.geo_normal.push(geo);
-        out.footprint.push(t.footprint);
-        out.center_inside.push(d2 == 0.0);
+        let texel = (y * w as usize + x) as u32;
+        out.push_surface_point(texel, &tris[ti as usize], b, d2 == 0.0);
     }
     out
 }

@@ -30,7 +30,7 @@
 
 use super::seams::Anchor;
 use crate::atlas::Receivers;
-use crate::atlas::rasterize::{SurfaceTri, closest_point_barycentric};
+use crate::atlas::rasterize::{SurfaceTri, closest_point_barycentric, inside};
 use crate::bake::{BakeParams, mc, validity, visibility};
 use crate::bits::{mix64, unit};
 use crate::sh::{SH_COUNT, VIS_COUNT};
@@ -110,13 +110,6 @@ fn grid_point(gx: i64, gy: i64, seed: u64) -> Vec2 {
     )
 }
 
-/// Whether `p` is inside triangle `t` (either winding; edges included).
-fn inside(p: Vec2, t: &[Vec2; 3]) -> bool {
-    let e = |a: Vec2, b: Vec2| (b - a).perp_dot(p - a);
-    let (e0, e1, e2) = (e(t[0], t[1]), e(t[1], t[2]), e(t[2], t[0]));
-    (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
-}
-
 /// The fit's points on `tris` (one page's, `width` x `height`): every
 /// grid point inside a triangle whose cell has a free tap, and the
 /// centroid of a triangle holding none such but whose centroid's cell
@@ -141,10 +134,16 @@ pub fn points(
             }
             let (gx0, gy0) = ((lo.x * g).floor() as i64, (lo.y * g).floor() as i64);
             let (gx1, gy1) = ((hi.x * g).floor() as i64, (hi.y * g).floor() as i64);
+            // Whether any grid point falls inside the triangle.
+            let mut any = false;
             for gy in gy0..=gy1 {
                 for gx in gx0..=gx1 {
                     let p = grid_point(gx, gy, seed);
-                    if inside(p, &t.uv) && cell_has_free(p, width, height, free) {
+                    if !inside(p, &t.uv) {
+                        continue;
+                    }
+                    any = true;
+                    if cell_has_free(p, width, height, free) {
                         let (bary, _) = closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2]);
                         out.push(FitPoint {
                             uv: p,
@@ -155,8 +154,6 @@ pub fn points(
                 }
             }
             let centroid = (t.uv[0] + t.uv[1] + t.uv[2]) / 3.0;
-            let any =
-                (gy0..=gy1).any(|gy| (gx0..=gx1).any(|gx| inside(grid_point(gx, gy, seed), &t.uv)));
             if !any && cell_has_free(centroid, width, height, free) {
                 let third = 1.0 / 3.0;
                 out.push(FitPoint {
@@ -175,7 +172,9 @@ pub fn points(
 /// against the data term, so the two sides' noisy fits still meet
 /// (Sponza 1024, seam AO jump mean / p95 with the fit's rows at half a
 /// seam row's weight: seam scale 1, 0.0112 / 0.056; 2 with the fit's rows
-/// at a quarter, 0.0040 / 0.0195).
+/// at a quarter, 0.0040 / 0.0195). Cross-page anchors are seam rows and
+/// scale alike (at 1, `tests/pages.rs`'s cross-page level closed to 0.46x
+/// of its open jump; it asks 0.4x).
 pub const SEAM_SCALE: f64 = 2.0;
 
 /// The anchors of a page's border band: [`points`] on `tris` traced with
@@ -204,14 +203,7 @@ pub fn anchors(
         ..Default::default()
     };
     for (k, p) in points.iter().enumerate() {
-        let t = &tris[p.tri as usize];
-        let (pos, n, geo) = t.at(p.bary);
-        r.texel.push(k as u32);
-        r.position.push(pos);
-        r.normal.push(n);
-        r.geo_normal.push(geo);
-        r.footprint.push(t.footprint);
-        r.center_inside.push(true);
+        r.push_surface_point(k as u32, &tris[p.tri as usize], p.bary, true);
     }
     let params = BakeParams { max_distance, seed };
     let inside = validity::inside_geometry(&r, tracer, max_distance, seed);

@@ -160,18 +160,6 @@ pub fn build(
         ),
         false => Vec::new(),
     };
-    // With the fit on, a cross-page seam's rows weigh as much as those of
-    // a seam within the page.
-    let anchors = match border_mode {
-        BorderMode::Fit => anchors
-            .into_iter()
-            .map(|a| seams::Anchor {
-                weight: border::SEAM_SCALE as f32,
-                ..a
-            })
-            .collect(),
-        BorderMode::Off => anchors,
-    };
     // The border fit's points, traced (once per page and free texels).
     let fit: Option<std::sync::Arc<border::FitTargets>> = match border_mode {
         BorderMode::Off => None,

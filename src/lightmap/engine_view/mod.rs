@@ -104,14 +104,8 @@ pub fn surface_points(
         // Uniform in the triangle: the square-root map.
         let (s, v) = (unit(key ^ 1).sqrt(), unit(key ^ 2));
         let b = [1.0 - s, s * (1.0 - v), s * v];
-        let (pos, n, geo) = t.at(b);
         let uv = t.uv[0] * b[0] + t.uv[1] * b[1] + t.uv[2] * b[2];
-        r.texel.push(k as u32);
-        r.position.push(pos);
-        r.normal.push(n);
-        r.geo_normal.push(geo);
-        r.footprint.push(t.footprint);
-        r.center_inside.push(true);
+        r.push_surface_point(k as u32, t, b, true);
         out.mesh.push(t.mesh);
         out.uv
             .push([uv.x / width as f32, uv.y / height as f32].map(|c| c.clamp(0.0, 1.0)));

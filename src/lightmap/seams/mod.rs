@@ -105,7 +105,8 @@ pub fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f6
 /// `anchors`: this page's side of seams that cross pages
 /// ([`anchor::anchors`]), pulled to their targets; `fitted`: the border
 /// fit's points ([`crate::lightmap::border`]), solved in the same system,
-/// where a seam's rows are scaled by `seam_scale`.
+/// where a seam's rows (two-sided, and the anchors) are scaled by
+/// `seam_scale`.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
@@ -126,22 +127,25 @@ pub fn stitch_page(
     let (texels, values, solve) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
         let fixed = |t: u32| interior(covered, width, height, t);
-        let all: Vec<Anchor>;
-        let rows = if fitted.is_empty() {
-            anchors
-        } else {
-            all = anchors.iter().chain(fitted).cloned().collect();
-            &all
-        };
         let (w, h, scale) = (width, height, seam_scale);
-        solve::stitch(seams, rows, w, h, scale, channels, fixed, |t, out| {
-            let t = t as usize;
-            out[0] = ao[t];
-            out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);
-            if let Some(v) = v {
-                out[1 + SH_COUNT..].copy_from_slice(&v[t]);
-            }
-        })
+        solve::stitch(
+            seams,
+            anchors,
+            fitted,
+            w,
+            h,
+            scale,
+            channels,
+            fixed,
+            |t, out| {
+                let t = t as usize;
+                out[0] = ao[t];
+                out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);
+                if let Some(v) = v {
+                    out[1 + SH_COUNT..].copy_from_slice(&v[t]);
+                }
+            },
+        )
     };
     let mut visibility = visibility;
     // With the border fit, the solve keeps every channel within the range

@@ -75,8 +75,9 @@ struct Row {
 pub struct Anchor {
     pub uv: [f32; 2],
     pub target: Vec<f32>,
-    /// The row's weight relative to a two-sided seam row's
-    /// ([`SEAM_WEIGHT`]): cross-page anchors 1, the border fit's points
+    /// The row's weight relative to a seam row's of scale 1
+    /// ([`SEAM_WEIGHT`]): cross-page anchors 1 (they are seam rows, scaled
+    /// with the seams by [`stitch`]), the border fit's points
     /// [`crate::lightmap::border::FIT_WEIGHT`].
     pub weight: f32,
 }
@@ -88,13 +89,16 @@ pub struct Anchor {
 /// better at covered texels and worse at the seams (Sponza 1024, covered
 /// weight 4: AO RMSE of the moved covered texels 0.0894 against 0.0997,
 /// seam jump mean 0.0108 against 0.0042; weight 16: 0.0696, 0.0282).
-/// `anchors` add one-sided constraints (lookup = target) of the same
-/// weight. Returns the texels that are unknowns, their new values
+/// `anchors` add one-sided constraints (lookup = target) of a seam (its
+/// other side on another page); seam rows, two-sided and these, are scaled
+/// by `seam_scale`. `fitted` add one-sided constraints of their own weight
+/// (the border fit's points). Returns the texels that are unknowns, their new values
 /// (`channels` each, in the same order) and what the solve did.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch(
     seams: &[Seam],
     anchors: &[Anchor],
+    fitted: &[Anchor],
     width: u32,
     height: u32,
     seam_scale: f64,
@@ -122,8 +126,15 @@ pub fn stitch(
             (both, None, seam_scale)
         })
     });
-    let one_sided = anchors.iter().enumerate().map(|(k, a)| {
-        let scale = a.weight as f64;
+    // Anchor k: of `anchors`, then of `fitted`.
+    let anchor_at = |k: usize| match k.checked_sub(anchors.len()) {
+        None => &anchors[k],
+        Some(f) => &fitted[f],
+    };
+    let one_sided = (0..anchors.len() + fitted.len()).map(|k| {
+        let a = anchor_at(k);
+        let seam = if k < anchors.len() { seam_scale } else { 1.0 };
+        let scale = seam * a.weight as f64;
         (tapped(a.uv, scale).collect(), Some(k), scale)
     });
     for (row_taps, anchor, scale) in two_sided.chain(one_sided) {
@@ -221,7 +232,7 @@ pub fn stitch(
                         }
                     }
                     if let Some(a) = rows[r].anchor {
-                        for (k, v) in k.iter_mut().zip(&anchors[a].target) {
+                        for (k, v) in k.iter_mut().zip(&anchor_at(a).target) {
                             *k -= rows[r].scale * *v as f64;
                         }
                     }
@@ -404,6 +415,7 @@ mod tests {
         let (texels, new, stats) = stitch(
             &[seam],
             &[],
+            &[],
             w,
             h,
             1.0,
@@ -446,6 +458,7 @@ mod tests {
         let (texels, new, stats) = stitch(
             &[],
             &anchors,
+            &[],
             w,
             h,
             1.0,
