@@ -61,31 +61,6 @@ fn view_bytes<'a>(json: &Value, bin: &'a [u8], view: usize) -> &'a [u8] {
     &bin[o..o + v["byteLength"].as_u64().unwrap() as usize]
 }
 
-/// Runs the Khronos validator when node and tools/validator are installed;
-/// returns (errors, warnings).
-fn validate(path: &Path) -> Option<(u64, u64)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    if !root
-        .join("tools/validator/node_modules/gltf-validator")
-        .exists()
-    {
-        eprintln!(
-            "note: gltf-validator not installed (npm install --prefix tools/validator), validation skipped"
-        );
-        return None;
-    }
-    let out = std::process::Command::new("node")
-        .arg(root.join("tools/validator/validate.mjs"))
-        .arg(path)
-        .output()
-        .ok()?;
-    let line: Value = serde_json::from_slice(&out.stdout).expect("validator prints JSON");
-    Some((
-        line["errors"].as_u64().unwrap(),
-        line["warnings"].as_u64().unwrap(),
-    ))
-}
-
 fn settings(resolution: u32) -> aobake::BakeSettings {
     common::settings(resolution, 4, None)
 }
@@ -163,8 +138,8 @@ fn bakes(name: &str, resolution: u32) {
     assert_eq!(baked, report.baked_primitives);
     // The output loads again.
     aobake::gltf::load(&out).unwrap();
-    if let Some((errors, warnings)) = validate(&out) {
-        let (_, in_warnings) = validate(&path).unwrap();
+    if let Some((errors, warnings)) = common::validate(&out) {
+        let (_, in_warnings) = common::validate(&path).unwrap();
         assert_eq!(errors, 0, "{name}: validator errors");
         assert!(
             warnings <= in_warnings,
@@ -215,10 +190,6 @@ bake_tests! {
     two_cylinder_engine: "two_cylinder_engine.glb" at 512;
 }
 
-#[test]
-fn lantern_draco_is_refused() {
-    refused("lantern_draco.glb", "KHR_draco_mesh_compression");
-}
 #[test]
 fn points_are_refused() {
     refused("primitive_mode_00_points.glb", "no triangle primitive");

@@ -214,6 +214,8 @@ fn corpus() -> Vec<Case> {
         "materials[0] is not an object",
         vec![],
     ));
+    // Compressed geometry (tests/data/): one edit each to a valid file.
+    cases.extend(compressed_cases());
     // Garbage after a valid GLB magic and version.
     let mut garbage = b"glTF".to_vec();
     garbage.extend_from_slice(&le(2));
@@ -226,6 +228,101 @@ fn corpus() -> Vec<Case> {
         vec![],
     ));
     cases
+}
+
+/// A GLB of tests/data, edited.
+fn edited(name: &str, edit: impl FnOnce(&mut Value, &mut Vec<u8>)) -> Vec<u8> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name);
+    let (mut j, mut b) = split(&std::fs::read(path).unwrap());
+    edit(&mut j, &mut b);
+    pack(&j, &b)
+}
+
+/// Corrupt Draco and meshopt streams, each named by its object.
+fn compressed_cases() -> Vec<Case> {
+    let draco_view = |j: &Value| {
+        let v = j["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
+            ["bufferView"]
+            .as_u64()
+            .unwrap() as usize;
+        let o = j["bufferViews"][v]["byteOffset"].as_u64().unwrap_or(0) as usize;
+        (v, o)
+    };
+    let meshopt = "/extensions/EXT_meshopt_compression";
+    let meshopt_offset = |j: &Value, v: usize| {
+        j["bufferViews"][v]
+            .pointer(&format!("{meshopt}/byteOffset"))
+            .unwrap()
+            .as_u64()
+            .unwrap() as usize
+    };
+    vec![
+        (
+            "draco_bad_magic.glb",
+            edited("lantern_draco.glb", |j, b| {
+                let (_, o) = draco_view(j);
+                b[o..o + 5].copy_from_slice(b"XXXXX");
+            }),
+            "meshes[0].primitives[0]: KHR_draco_mesh_compression data is corrupt",
+            vec![],
+        ),
+        (
+            "draco_truncated.glb",
+            edited("lantern_draco.glb", |j, _| {
+                let (v, _) = draco_view(j);
+                let n = j["bufferViews"][v]["byteLength"].as_u64().unwrap();
+                j["bufferViews"][v]["byteLength"] = json!(n / 3);
+            }),
+            "meshes[0].primitives[0]: KHR_draco_mesh_compression data is corrupt",
+            vec![],
+        ),
+        (
+            "meshopt_bad_header.glb",
+            edited("lantern_meshopt.glb", |j, b| {
+                let o = meshopt_offset(j, 1);
+                b[o] = 0xff;
+            }),
+            "bufferViews[1]: EXT_meshopt_compression data is corrupt",
+            vec![],
+        ),
+        (
+            "meshopt_truncated.glb",
+            edited("lantern_meshopt.glb", |j, _| {
+                let e = j["bufferViews"][1].pointer_mut(meshopt).unwrap();
+                let n = e["byteLength"].as_u64().unwrap();
+                e["byteLength"] = json!(n / 2);
+            }),
+            "bufferViews[1]: EXT_meshopt_compression data is corrupt",
+            vec![],
+        ),
+        (
+            "meshopt_index_garbage.glb",
+            edited("lantern_meshopt.glb", |j, b| {
+                let o = meshopt_offset(j, 2) + 20;
+                b[o..o + 3000].fill(0x37);
+            }),
+            "bufferViews[2]: EXT_meshopt_compression data is corrupt",
+            vec![],
+        ),
+        (
+            "meshopt_outside_buffer.glb",
+            edited("lantern_meshopt.glb", |j, _| {
+                j["bufferViews"][2].pointer_mut(meshopt).unwrap()["byteOffset"] = json!(10_000_000);
+            }),
+            "bufferViews[2]: EXT_meshopt_compression bytes 10000000+",
+            vec![],
+        ),
+        (
+            "meshopt_unknown_filter.glb",
+            edited("lantern_meshopt.glb", |j, _| {
+                j["bufferViews"][1].pointer_mut(meshopt).unwrap()["filter"] = json!("SPIRAL");
+            }),
+            "bufferViews[1]: EXT_meshopt_compression filter SPIRAL is not supported",
+            vec![],
+        ),
+    ]
 }
 
 fn run_cli(input: &Path, output: &Path, extra: &[&str]) -> std::process::Output {

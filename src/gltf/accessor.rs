@@ -174,8 +174,17 @@ pub(crate) fn array<'a>(json: &'a Value, key: &str) -> &'a [Value] {
         .unwrap_or(&[])
 }
 
+/// How errors and warnings name a primitive: `meshes[m].primitives[p]`.
+pub fn primitive_label(mesh: usize, primitive: usize) -> String {
+    format!("meshes[{mesh}].primitives[{primitive}]")
+}
+
 /// A checked byte range of a buffer view: (bytes of the view, stride).
-fn view_bytes<'d>(doc: &'d Document, view: usize, what: &str) -> Result<(&'d [u8], Option<usize>)> {
+pub(super) fn view_bytes<'d>(
+    doc: &'d Document,
+    view: usize,
+    what: &str,
+) -> Result<(&'d [u8], Option<usize>)> {
     let views = array(&doc.json, "bufferViews");
     let v = views
         .get(view)

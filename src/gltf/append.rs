@@ -172,3 +172,26 @@ pub(super) fn index_accessor(
         json!({"bufferView": view, "componentType": ct, "count": indices.len(), "type": "SCALAR"}),
     )
 }
+
+/// Makes room for the GLB BIN buffer at `buffers[0]`, shifting references.
+pub(super) fn insert_bin_buffer(json: &mut Value) {
+    let obj = json.as_object_mut().expect("root");
+    let buffers = obj.entry("buffers").or_insert_with(|| json!([]));
+    if let Some(b) = buffers.as_array_mut() {
+        b.insert(0, json!({"byteLength": 0}));
+    }
+    if let Some(views) = obj.get_mut("bufferViews").and_then(Value::as_array_mut) {
+        for v in views {
+            if let Some(b) = v.get("buffer").and_then(Value::as_u64) {
+                v["buffer"] = json!(b + 1);
+            }
+            for ext in ["EXT_meshopt_compression", "KHR_meshopt_compression"] {
+                if let Some(e) = v.pointer_mut(&format!("/extensions/{ext}"))
+                    && let Some(b) = e.get("buffer").and_then(Value::as_u64)
+                {
+                    e["buffer"] = json!(b + 1);
+                }
+            }
+        }
+    }
+}

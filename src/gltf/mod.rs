@@ -10,6 +10,7 @@
 //!
 //! - [`container`]: GLB chunks or JSON, buffers (BIN, `data:`, files), and
 //!   GLB serialization;
+//! - [`decompress`]: Draco and meshopt geometry decoded into plain views;
 //! - [`accessor`]: typed reads (strides, sparse, normalized, quantized);
 //! - [`scene`]: nodes, transforms, primitives, instancing, bake space;
 //! - [`write`](mod@write): the document edited as `serde_json::Value`,
@@ -20,6 +21,7 @@
 pub mod accessor;
 mod append;
 pub mod container;
+pub mod decompress;
 pub mod scene;
 pub mod uris;
 pub mod write;

@@ -8,21 +8,16 @@
 //! bounding box and divided by its diagonal), where the rest of the pipeline
 //! works at unit scale whatever the file's units.
 
+pub use super::accessor::primitive_label;
 use super::accessor::{self, array, field_usize};
 use super::container::{self, Document};
+use super::decompress;
 use crate::error::{Error, Result};
 use crate::geometry::{BakeGeometry, BakeSpace, ReceiverMesh};
 use glam::{DMat3, DMat4, DQuat, DVec3, Vec3A};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::path::Path;
-
-/// Extensions whose geometry cannot be decoded.
-const COMPRESSION_EXTENSIONS: [&str; 3] = [
-    "KHR_draco_mesh_compression",
-    "EXT_meshopt_compression",
-    "KHR_meshopt_compression",
-];
 
 /// Roughness below which a material's specular lobe is glossy enough to
 /// need occluding by direction (`--visibility auto`): at roughness 0.3 AO
@@ -51,11 +46,6 @@ pub struct PrimitiveGeometry {
     pub morphed: bool,
     /// Its material is `doubleSided` (back faces are real surfaces).
     pub double_sided: bool,
-}
-
-/// How errors and warnings name a primitive: `meshes[m].primitives[p]`.
-pub fn primitive_label(mesh: usize, primitive: usize) -> String {
-    format!("meshes[{mesh}].primitives[{primitive}]")
 }
 
 impl PrimitiveGeometry {
@@ -157,15 +147,11 @@ fn triangle_list(mode: u64, idx: &[u32]) -> Vec<u32> {
 
 impl Scene {
     /// Decodes geometry and walks the default scene.
-    pub fn from_document(doc: Document) -> Result<Scene> {
+    /// Draco and meshopt geometry is decoded first ([`decompress`]), so the
+    /// scene and its write-back see plain accessors.
+    pub fn from_document(mut doc: Document) -> Result<Scene> {
+        let decoded = decompress::decompress(&mut doc)?;
         let json = &doc.json;
-        for ext in array(json, "extensionsRequired") {
-            if let Some(name) = ext.as_str().filter(|n| COMPRESSION_EXTENSIONS.contains(n)) {
-                return Err(Error::Unsupported(format!(
-                    "extensionsRequired lists {name}: compressed geometry cannot be read; decompress it first (e.g. gltf-transform copy)"
-                )));
-            }
-        }
         let nodes = array(json, "nodes");
         let meshes = array(json, "meshes");
         let roots: Vec<usize> = match json.get("scenes").and_then(Value::as_array) {
@@ -197,7 +183,7 @@ impl Scene {
 
         let mut geometries: Vec<PrimitiveGeometry> = Vec::new();
         let mut instances: Vec<Instance> = Vec::new();
-        let mut warnings: Vec<String> = Vec::new();
+        let mut warnings: Vec<String> = decoded;
         let mut geometry_of: HashMap<(usize, usize), Option<usize>> = HashMap::new();
         let mut visited = vec![false; nodes.len()];
         let mut stack: Vec<(usize, DMat4)> =
@@ -497,13 +483,6 @@ fn warn(warnings: &mut Vec<String>, line: String) {
 fn decode_primitive(doc: &Document, mi: usize, pi: usize) -> Result<Option<PrimitiveGeometry>> {
     let what = primitive_label(mi, pi);
     let prim = &array(&doc.json, "meshes")[mi]["primitives"][pi];
-    for ext in COMPRESSION_EXTENSIONS {
-        if prim.pointer(&format!("/extensions/{ext}")).is_some() {
-            return Err(Error::Unsupported(format!(
-                "{what} uses {ext}: compressed geometry cannot be read; decompress it first (e.g. gltf-transform copy)"
-            )));
-        }
-    }
     let mode = prim
         .get("mode")
         .map_or(Some(4), Value::as_u64)

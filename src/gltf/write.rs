@@ -20,7 +20,7 @@
 //!   from the output's directory ([`super::uris`]).
 
 use super::accessor::{self, array};
-use super::append::{Bin, f32_accessor, gather_accessor, index_accessor, push};
+use super::append::{Bin, f32_accessor, gather_accessor, index_accessor, insert_bin_buffer, push};
 use super::container::{Document, glb_bytes};
 use super::scene::Scene;
 use super::uris::relocate_uris;
@@ -338,29 +338,6 @@ fn set_extension(prim: &mut Value, ext: Value) {
     let obj = prim.as_object_mut().expect("primitive is an object");
     let exts = obj.entry("extensions").or_insert_with(|| json!({}));
     exts[EXTENSION] = ext;
-}
-
-/// Makes room for the GLB BIN buffer at `buffers[0]`, shifting references.
-fn insert_bin_buffer(json: &mut Value) {
-    let obj = json.as_object_mut().expect("root");
-    let buffers = obj.entry("buffers").or_insert_with(|| json!([]));
-    if let Some(b) = buffers.as_array_mut() {
-        b.insert(0, json!({"byteLength": 0}));
-    }
-    if let Some(views) = obj.get_mut("bufferViews").and_then(Value::as_array_mut) {
-        for v in views {
-            if let Some(b) = v.get("buffer").and_then(Value::as_u64) {
-                v["buffer"] = json!(b + 1);
-            }
-            for ext in ["EXT_meshopt_compression", "KHR_meshopt_compression"] {
-                if let Some(e) = v.pointer_mut(&format!("/extensions/{ext}"))
-                    && let Some(b) = e.get("buffer").and_then(Value::as_u64)
-                {
-                    e["buffer"] = json!(b + 1);
-                }
-            }
-        }
-    }
 }
 
 /// Puts new primitives into meshes: in place when the mesh is placed only by

@@ -275,3 +275,28 @@ pub fn order_key(receivers: &aobake::atlas::Receivers) -> u64 {
             (h ^ t as u64).wrapping_mul(0x0100_0000_01b3)
         })
 }
+
+/// Runs the Khronos validator when node and tools/validator are installed;
+/// returns (errors, warnings).
+pub fn validate(path: &std::path::Path) -> Option<(u64, u64)> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    if !root
+        .join("tools/validator/node_modules/gltf-validator")
+        .exists()
+    {
+        eprintln!(
+            "note: gltf-validator not installed (npm install --prefix tools/validator), validation skipped"
+        );
+        return None;
+    }
+    let out = std::process::Command::new("node")
+        .arg(root.join("tools/validator/validate.mjs"))
+        .arg(path)
+        .output()
+        .ok()?;
+    let line: Value = serde_json::from_slice(&out.stdout).expect("validator prints JSON");
+    Some((
+        line["errors"].as_u64().unwrap(),
+        line["warnings"].as_u64().unwrap(),
+    ))
+}
