@@ -6,57 +6,20 @@
 //! installs them). Without them the test says so and passes, except under
 //! CI (`CI` set) or with `AOBAKE_REQUIRE_BROWSER` set, where it fails.
 
+mod common;
+
 use std::path::Path;
-use std::process::Command;
 
 #[test]
 fn viewer_relights_bakes_in_a_real_browser() {
     let viewer = Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer");
-    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".to_string());
-    let node = Command::new("node").arg("--version").output();
-    let missing: Vec<&str> = [
-        (node.is_err(), "node"),
-        (
-            !viewer.join("node_modules/three").is_dir()
-                || !viewer.join("node_modules/playwright-core").is_dir(),
-            "npm ci --prefix viewer",
-        ),
-        (!Path::new(&chromium).is_file(), "the chromium package"),
-    ]
-    .into_iter()
-    .filter_map(|(gone, what)| gone.then_some(what))
-    .collect();
-    if !missing.is_empty() {
-        let required = std::env::var_os("CI").is_some()
-            || std::env::var_os("AOBAKE_REQUIRE_BROWSER").is_some();
-        assert!(!required, "browser tests need: {}", missing.join(", "));
-        eprintln!(
-            "note: viewer browser tests skipped, missing: {}",
-            missing.join(", ")
-        );
-        return;
-    }
-    let out = Command::new("node")
-        .args([
-            "--test",
-            "--test-reporter=tap",
-            "test/viewer.test.mjs",
-            "test/builtin.test.mjs",
-        ])
-        .current_dir(&viewer)
-        .env("AOBAKE_BIN", env!("CARGO_BIN_EXE_aobake"))
-        .env("CHROMIUM", &chromium)
-        .output()
-        .expect("node runs");
-    let tap = String::from_utf8_lossy(&out.stdout);
-    // The measured differences, for the log (cargo test --nocapture).
-    for line in tap.lines().filter(|l| l.starts_with("# \\#")) {
-        eprintln!("{}", &line[4..]);
-    }
-    assert!(
-        out.status.success(),
-        "viewer tests failed:\n{tap}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+    let installed = viewer.join("node_modules/three").is_dir()
+        && viewer.join("node_modules/playwright-core").is_dir();
+    common::run_browser_tests(
+        &viewer,
+        &["test/viewer.test.mjs", "test/builtin.test.mjs"],
+        &[(!installed, "npm ci --prefix viewer")],
+        env!("CARGO_BIN_EXE_aobake"),
     );
 }
 

@@ -23,6 +23,8 @@ mod append;
 pub mod container;
 pub mod decompress;
 pub mod scene;
+#[cfg(feature = "contract-check")]
+mod schema_check;
 pub mod uris;
 pub mod write;
 

@@ -269,6 +269,8 @@ pub fn build_glb(
     if let Some(to) = &options.output_dir {
         relocate_uris(&mut json, &doc.base_dir, to)?;
     }
+    #[cfg(feature = "contract-check")]
+    super::schema_check::assert_valid(&json);
     Ok(glb_bytes(&json, &bin.data))
 }
 

@@ -16,6 +16,10 @@ pub const FILES: &[(&str, &[u8])] = &[
         include_bytes!("../../viewer/aobake-lightmap.js"),
     ),
     (
+        "aobake-extension.js",
+        include_bytes!("../../viewer/aobake-extension.js"),
+    ),
+    (
         "environments.js",
         include_bytes!("../../viewer/environments.js"),
     ),

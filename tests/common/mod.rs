@@ -300,3 +300,57 @@ pub fn validate(path: &std::path::Path) -> Option<(u64, u64)> {
         line["warnings"].as_u64().unwrap(),
     ))
 }
+
+/// Runs `node --test ARGS` in `dir` (a browser test folder) with the
+/// `aobake` binary at `aobake`, after checking what it needs: `needs` lists (missing,
+/// what to install). Without them it says so and passes, except under CI
+/// (`CI` set) or with `AOBAKE_REQUIRE_BROWSER` set, where it fails. Prints
+/// the measured lines (`# \#`) for the log and fails with the TAP output.
+pub fn run_browser_tests(
+    dir: &std::path::Path,
+    args: &[&str],
+    needs: &[(bool, &str)],
+    aobake: &str,
+) {
+    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".to_string());
+    let node = std::process::Command::new("node").arg("--version").output();
+    let missing: Vec<&str> = [
+        (node.is_err(), "node"),
+        (
+            !std::path::Path::new(&chromium).is_file(),
+            "the chromium package",
+        ),
+    ]
+    .into_iter()
+    .chain(needs.iter().copied())
+    .filter_map(|(gone, what)| gone.then_some(what))
+    .collect();
+    if !missing.is_empty() {
+        let required = std::env::var_os("CI").is_some()
+            || std::env::var_os("AOBAKE_REQUIRE_BROWSER").is_some();
+        assert!(!required, "browser tests need: {}", missing.join(", "));
+        eprintln!(
+            "note: browser tests skipped, missing: {}",
+            missing.join(", ")
+        );
+        return;
+    }
+    let out = std::process::Command::new("node")
+        .args(["--test", "--test-reporter=tap"])
+        .args(args)
+        .current_dir(dir)
+        .env("AOBAKE_BIN", aobake)
+        .env("CHROMIUM", &chromium)
+        .output()
+        .expect("node runs");
+    let tap = String::from_utf8_lossy(&out.stdout);
+    // The measured differences, for the log (cargo test --nocapture).
+    for line in tap.lines().filter(|l| l.starts_with("# \\#")) {
+        eprintln!("{}", &line[4..]);
+    }
+    assert!(
+        out.status.success(),
+        "browser tests failed:\n{tap}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

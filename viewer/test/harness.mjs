@@ -7,7 +7,8 @@
 // assets; default ../shared/assets beside the repository).
 
 import { spawn, execFileSync } from 'node:child_process';
-import { mkdtempSync } from 'node:fs';
+import { mkdtempSync, writeFileSync } from 'node:fs';
+import { writeGlb } from './decode.mjs';
 import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -90,4 +91,47 @@ export async function pick(page, path) {
     before,
   );
   return page.evaluate(() => window.aobakeViewer.status());
+}
+
+/** A 1x1 quad tilted so that every SH basis function matters, as a GLB;
+ * `material`: a glTF material object for it (none by default). */
+export function tiltedPlane(path, { material = null } = {}) {
+  const n = [0.48, 0.64, 0.6];
+  const t = [0.8, -0.6, 0];
+  const b = [n[1] * t[2] - n[2] * t[1], n[2] * t[0] - n[0] * t[2], n[0] * t[1] - n[1] * t[0]];
+  const corner = (s, r) => [0, 1, 2].map((k) => (s - 0.5) * t[k] + (r - 0.5) * b[k]);
+  const pos = [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)].flat();
+  const nor = [n, n, n, n].flat();
+  const idx = [0, 1, 2, 0, 2, 3];
+  const bin = Buffer.concat([
+    Buffer.from(new Float32Array(pos).buffer),
+    Buffer.from(new Float32Array(nor).buffer),
+    Buffer.from(new Uint16Array(idx).buffer),
+  ]);
+  const min = [0, 1, 2].map((k) => Math.min(...[0, 1, 2, 3].map((v) => pos[v * 3 + k])));
+  const max = [0, 1, 2].map((k) => Math.max(...[0, 1, 2, 3].map((v) => pos[v * 3 + k])));
+  const json = {
+    asset: { version: '2.0' },
+    scene: 0,
+    scenes: [{ nodes: [0] }],
+    nodes: [{ mesh: 0 }],
+    meshes: [{ primitives: [{ attributes: { POSITION: 0, NORMAL: 1 }, indices: 2 }] }],
+    buffers: [{ byteLength: bin.length }],
+    bufferViews: [
+      { buffer: 0, byteOffset: 0, byteLength: 48 },
+      { buffer: 0, byteOffset: 48, byteLength: 48 },
+      { buffer: 0, byteOffset: 96, byteLength: 12 },
+    ],
+    accessors: [
+      { bufferView: 0, componentType: 5126, count: 4, type: 'VEC3', min, max },
+      { bufferView: 1, componentType: 5126, count: 4, type: 'VEC3' },
+      { bufferView: 2, componentType: 5123, count: 6, type: 'SCALAR' },
+    ],
+  };
+  if (material) {
+    json.materials = [material];
+    json.meshes[0].primitives[0].material = 0;
+  }
+  writeFileSync(path, writeGlb(json, bin));
+  return path;
 }

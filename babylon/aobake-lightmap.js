@@ -1,0 +1,448 @@
+// Babylon.js importer for aobake's `AOBAKE_lightmap` glTF extension.
+//
+// In: a glTF written by aobake (the contract: docs/extensions/AOBAKE_lightmap,
+// per baked primitive `{texCoord, occlusion, sh[3], shScale[9], shOffset[9]}`
+// and, with several atlas pages, `page`), loaded by @babylonjs/loaders' glTF
+// 2.0 loader, and the scene's environment (its `environmentTexture`'s
+// spherical polynomial, or radiance SH given directly). Out: every baked
+// primitive's material (cloned per material and page, since each page has
+// its own textures and ranges) carries a MaterialPlugin that replaces the
+// PBR material's diffuse environment light by the baked one:
+//   finalIrradiance = sum_i c_i L_i,  c_i = shScale[i] * channel_i + shOffset[i]
+// read bilinearly on the extension's UV set; the baked AO sits on the
+// material's ambient (occlusion) slot, where every Babylon material shows it.
+//
+// Conventions (checked by babylon/test/babylon.test.mjs):
+// - basis and order: the contract's real SH, (l,m) = (0,0),(1,-1),(1,0),(1,1),
+//   (2,-2),(2,-1),(2,0),(2,1),(2,2), no Condon-Shortley phase; Babylon's
+//   SphericalHarmonics carry the phase (l1_1, l11, l2_1, l21 negated), so its
+//   coefficients are not used directly;
+// - scale: c_i carries the 1/pi, so sum_i c_i L_i = E / pi, which is what
+//   Babylon's `reflectionOut.environmentIrradiance` holds (its polynomial is
+//   the irradiance over pi, before albedo); the plugin puts c.L in its place;
+// - world space: the bake's directions are the file's (glTF, right-handed, Y
+//   up). The loader's root node maps them into Babylon's world (a mirror
+//   unless the scene is right-handed); the environment's L_i are projected
+//   through that root's matrix, numerically, so any root transform works;
+// - channels: c0..c3 = sh[0].rgba, c4..c7 = sh[1].rgba, c8 = sh[2].r; the
+//   textures hold linear data (gammaSpace false), clamp to edge.
+//
+// Not read here: the visibility layer (`visibility`, normal-mapped relight
+// and specular occlusion); a primitive that has it relights at its vertex
+// normal, as c.L.
+//
+// Imports: @babylonjs/core and @babylonjs/loaders (pinned in package.json),
+// and the engine-neutral ../viewer/aobake-extension.js (the extension's name
+// and checks, shared with the three.js plugin).
+//
+// Use:
+//   import { registerAobakeLightmap, AobakeLightmaps } from './aobake-lightmap.js';
+//   const lightmaps = new AobakeLightmaps();
+//   registerAobakeLightmap(lightmaps);
+//   await SceneLoader.AppendAsync(url, undefined, scene);   // or ImportMeshAsync
+//   lightmaps.setEnvironmentFromScene(scene);  // or setEnvironment(L) (9 x [r,g,b])
+//   lightmaps.setMode('sh');                    // 'sh' | 'ao' | 'off'
+
+import { MaterialPluginBase } from '@babylonjs/core/Materials/materialPluginBase.js';
+import { Texture } from '@babylonjs/core/Materials/Textures/texture.js';
+import { Matrix, Vector3 } from '@babylonjs/core/Maths/math.vector.js';
+import { registerGLTFExtension } from '@babylonjs/loaders/glTF/2.0/glTFLoaderExtensionRegistry.js';
+import { EXTENSION, extensionProblem as contractProblem } from '../viewer/aobake-extension.js';
+
+export { EXTENSION };
+
+/** Output modes: 'sh' the baked light relit, 'ao' Babylon's environment
+ * light times the baked AO (its ambient slot), 'off' no baked light. */
+export const MODES = { off: 0, ao: 1, sh: 2 };
+
+/** Debug outputs (raw, for tests): c.L, the AO texture, the lightmap UV,
+ * the atlas page, and (u, v, red of c.L, page + 1) from one fragment. */
+export const DEBUG = { none: 0, irradiance: 1, ao: 2, uv: 3, page: 4, uvIrradiancePage: 5 };
+
+/** The 9 real SH basis functions (the contract's order and constants). */
+export function basis9([x, y, z]) {
+  return [
+    0.282095, 0.488603 * y, 0.488603 * z, 0.488603 * x,
+    1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1),
+    1.092548 * x * z, 0.546274 * (x * x - y * y),
+  ];
+}
+
+/** Integrates f(w) Y_i(w) over the sphere for the 9 basis functions:
+ * 16-point Gauss-Legendre in z x 32 azimuths (exact to degree 8 in z). */
+export function project(f) {
+  const out = Array.from({ length: 9 }, () => [0, 0, 0]);
+  const n = 16;
+  for (let i = 0; i < n; i++) {
+    // Gauss-Legendre node and weight by Newton on P_n.
+    let t = Math.cos((Math.PI * (i + 0.75)) / (n + 0.5));
+    let w = 0;
+    for (let it = 0; it < 100; it++) {
+      let p0 = 1;
+      let p1 = t;
+      for (let k = 2; k <= n; k++) [p0, p1] = [p1, ((2 * k - 1) * t * p1 - (k - 1) * p0) / k];
+      const dp = (n * (t * p1 - p0)) / (t * t - 1);
+      const step = p1 / dp;
+      t -= step;
+      if (Math.abs(step) < 1e-15) {
+        w = 2 / ((1 - t * t) * dp * dp);
+        break;
+      }
+    }
+    const r = Math.sqrt(Math.max(0, 1 - t * t));
+    const az = 32;
+    for (let a = 0; a < az; a++) {
+      const phi = ((a + 0.5) / az) * 2 * Math.PI;
+      const dir = [r * Math.cos(phi), r * Math.sin(phi), t];
+      const y = basis9(dir);
+      const v = f(dir);
+      const dw = (w * 2 * Math.PI) / az;
+      for (let k = 0; k < 9; k++) for (let c = 0; c < 3; c++) out[k][c] += dw * y[k] * v[c];
+    }
+  }
+  return out;
+}
+
+/** Band of coefficient i. */
+const band = (i) => (i === 0 ? 0 : i < 4 ? 1 : 2);
+
+/** The cosine lobe's convolution A_l (Ramamoorthi and Hanrahan). */
+const A = [Math.PI, (2 * Math.PI) / 3, Math.PI / 4];
+
+/** Babylon's SH terms without their constants (its `applySH3` order). */
+const TRIG = [
+  () => 1, (d) => d[1], (d) => d[2], (d) => d[0], (d) => d[0] * d[1], (d) => d[1] * d[2],
+  (d) => 3 * d[2] * d[2] - 1, (d) => d[0] * d[2], (d) => d[0] * d[0] - d[1] * d[1],
+];
+
+/**
+ * Radiance SH L_i in the bake's (glTF world) frame from a Babylon
+ * environment's spherical polynomial and the 3x3 linear part `toScene`
+ * (row-major) of the glTF root's world matrix.
+ *
+ * What Babylon's PBR shader evaluates for the diffuse environment light is
+ * E(n)/pi = sum_k h_k t_k(n) with h = `preScaledHarmonics` (its constants,
+ * phase and the cosine lobe folded in) and t_k the bare terms: that
+ * function, at n = M w, is projected on the contract's basis and divided by
+ * the lobe's A_l / pi, so an open receiver relights as Babylon lights it.
+ * (The polynomial's own coefficients are not that function: its band 1 is
+ * 2/3 of it, measured by babylon/test.)
+ */
+export function radianceFromPolynomial(poly, toScene) {
+  const m = toScene;
+  const hs = poly.preScaledHarmonics;
+  const h = [hs.l00, hs.l1_1, hs.l10, hs.l11, hs.l2_2, hs.l2_1, hs.l20, hs.l21, hs.l22];
+  const e = (d) => {
+    let x = m[0] * d[0] + m[1] * d[1] + m[2] * d[2];
+    let y = m[3] * d[0] + m[4] * d[1] + m[5] * d[2];
+    let z = m[6] * d[0] + m[7] * d[1] + m[8] * d[2];
+    const len = Math.hypot(x, y, z) || 1;
+    const n = [x / len, y / len, z / len];
+    const t = TRIG.map((f) => f(n));
+    return [0, 1, 2].map((c) => h.reduce((s, v, k) => s + [v.x, v.y, v.z][c] * t[k], 0));
+  };
+  return project(e).map((p, i) => p.map((v) => (v * Math.PI) / A[band(i)]));
+}
+
+/** Why an extension object cannot be used, or null: the contract's rules
+ * (shared with the three.js plugin), and a UV set Babylon's PBR material
+ * can carry. */
+export function extensionProblem(ext, json) {
+  const problem = contractProblem(ext, json);
+  if (problem) return problem;
+  if (ext.texCoord > 3) return `texCoord ${ext.texCoord} is past the sets this importer reads (0..3)`;
+  return null;
+}
+
+/** What the importer found, and the state every patched material shares. */
+export class AobakeLightmaps {
+  constructor() {
+    /** 9 x [r, g, b]: the environment's radiance SH in the bake's frame. */
+    this.L = Array.from({ length: 9 }, () => [0, 0, 0]);
+    this.mode = MODES.sh;
+    this.debug = DEBUG.none;
+    /** Baked meshes: { mesh, label, extension, material, textures }. */
+    this.baked = [];
+    /** One line per primitive whose extension could not be used. */
+    this.problems = [];
+    /** The root extension of the last file. */
+    this.record = null;
+    /** Row-major 3x3: glTF world directions to the scene's (the loader's root). */
+    this.toScene = [1, 0, 0, 0, 1, 0, 0, 0, 1];
+    this._scene = null;
+  }
+
+  /** Radiance SH in the bake's frame, 9 x [r, g, b]. */
+  setEnvironment(L) {
+    this.L = L.map((c) => [c[0], c[1], c[2]]);
+    this._scene?.resetCachedMaterial();
+  }
+
+  /** The scene's own environment (environmentTexture.sphericalPolynomial),
+   * converted; returns the L_i set. */
+  setEnvironmentFromScene(scene) {
+    const poly = scene.environmentTexture?.sphericalPolynomial;
+    if (!poly) throw new Error('the scene has no environment texture with spherical harmonics');
+    this.setEnvironment(radianceFromPolynomial(poly, this.toScene));
+    return this.L;
+  }
+
+  setMode(mode) {
+    if (!(mode in MODES)) throw new Error(`unknown mode ${mode}`);
+    this.mode = MODES[mode];
+    this._scene?.resetCachedMaterial();
+  }
+
+  setDebug(name) {
+    if (!(name in DEBUG)) throw new Error(`unknown debug output ${name}`);
+    this.debug = DEBUG[name];
+    this._scene?.resetCachedMaterial();
+  }
+
+  /** Bilinear at mip level 0 (as a CPU decoder reads), or trilinear. */
+  setLevel0(on) {
+    for (const b of this.baked) {
+      for (const t of b.textures) {
+        t.updateSamplingMode(on ? Texture.BILINEAR_SAMPLINGMODE : Texture.TRILINEAR_SAMPLINGMODE);
+      }
+    }
+  }
+
+  clear() {
+    this.baked = [];
+    this.problems = [];
+    this.record = null;
+  }
+}
+
+/** The material plugin: c.L in place of the PBR diffuse environment light. */
+export class AobakeLightmapPlugin extends MaterialPluginBase {
+  constructor(material, lightmaps, bake) {
+    super(material, 'AobakeLightmap', 200, { AOBAKE: false, AOBAKE_UVSET: 0 });
+    this.lightmaps = lightmaps;
+    this.bake = bake; // { texCoord, occlusion, sh: [3 textures], scale[9], offset[9], page }
+    this._enable(true);
+  }
+
+  getClassName() {
+    return 'AobakeLightmapPlugin';
+  }
+
+  prepareDefines(defines) {
+    defines.AOBAKE = true;
+    defines.AOBAKE_UVSET = this.bake.texCoord + 1;
+  }
+
+  getAttributes(attributes, scene, mesh) {
+    const name = this.bake.texCoord === 0 ? 'uv' : `uv${this.bake.texCoord + 1}`;
+    if (mesh.isVerticesDataPresent(name) && !attributes.includes(name)) attributes.push(name);
+  }
+
+  getSamplers(samplers) {
+    samplers.push('aobakeSH0', 'aobakeSH1', 'aobakeSH2', 'aobakeAO');
+  }
+
+  getUniforms() {
+    const names = ['aobakeScale0', 'aobakeScale1', 'aobakeScale2', 'aobakeOffset0', 'aobakeOffset1', 'aobakeOffset2'];
+    const ubo = [
+      ...names.map((name) => ({ name, size: 4, type: 'vec4' })),
+      ...Array.from({ length: 9 }, (_, i) => ({ name: `aobakeL${i}`, size: 3, type: 'vec3' })),
+      { name: 'aobakeMode', size: 1, type: 'float' },
+      { name: 'aobakeDebug', size: 1, type: 'float' },
+      { name: 'aobakePage', size: 1, type: 'float' },
+    ];
+    const fragment = `#ifdef AOBAKE
+${names.map((n) => `uniform vec4 ${n};`).join('\n')}
+${Array.from({ length: 9 }, (_, i) => `uniform vec3 aobakeL${i};`).join('\n')}
+uniform float aobakeMode;
+uniform float aobakeDebug;
+uniform float aobakePage;
+#endif`;
+    return { ubo, fragment };
+  }
+
+  bindForSubMesh(uniformBuffer) {
+    const b = this.bake;
+    const lm = this.lightmaps;
+    const v4 = (a, k) => [a[k] ?? 0, a[k + 1] ?? 0, a[k + 2] ?? 0, a[k + 3] ?? 0];
+    for (let j = 0; j < 3; j++) {
+      uniformBuffer.updateFloat4(`aobakeScale${j}`, ...v4(b.scale, 4 * j));
+      uniformBuffer.updateFloat4(`aobakeOffset${j}`, ...v4(b.offset, 4 * j));
+    }
+    for (let i = 0; i < 9; i++) uniformBuffer.updateFloat3(`aobakeL${i}`, ...lm.L[i]);
+    uniformBuffer.updateFloat('aobakeMode', lm.mode);
+    uniformBuffer.updateFloat('aobakeDebug', lm.debug);
+    uniformBuffer.updateFloat('aobakePage', b.page);
+    uniformBuffer.setTexture('aobakeSH0', b.sh[0]);
+    uniformBuffer.setTexture('aobakeSH1', b.sh[1]);
+    uniformBuffer.setTexture('aobakeSH2', b.sh[2]);
+    uniformBuffer.setTexture('aobakeAO', b.occlusion);
+  }
+
+  getActiveTextures(active) {
+    active.push(...this.bake.sh, this.bake.occlusion);
+  }
+
+  hasTexture(texture) {
+    return this.bake.sh.includes(texture) || this.bake.occlusion === texture;
+  }
+
+  getCustomCode(shaderType) {
+    const uv = (set) => (set === 1 ? 'uv' : `uv${set}`);
+    if (shaderType === 'vertex') {
+      const sets = [1, 2, 3, 4];
+      return {
+        CUSTOM_VERTEX_DEFINITIONS: `#ifdef AOBAKE
+${sets.map((s) => `#if AOBAKE_UVSET == ${s} && !defined(UV${s})
+attribute vec2 ${uv(s)};
+#endif`).join('\n')}
+varying vec2 vAobakeUV;
+#endif`,
+        CUSTOM_VERTEX_MAIN_END: `#ifdef AOBAKE
+${sets.map((s) => `#if AOBAKE_UVSET == ${s}
+vAobakeUV = ${uv(s)};
+#endif`).join('\n')}
+#endif`,
+      };
+    }
+    if (shaderType !== 'fragment') return null;
+    return {
+      CUSTOM_FRAGMENT_DEFINITIONS: `#ifdef AOBAKE
+varying vec2 vAobakeUV;
+uniform sampler2D aobakeSH0;
+uniform sampler2D aobakeSH1;
+uniform sampler2D aobakeSH2;
+uniform sampler2D aobakeAO;
+// Level 0 (bilinear, as a CPU decoder reads) for the debug outputs: the
+// sampler's own minification would average a sliver's texels.
+vec4 aobakeTexel(sampler2D s) {
+  return aobakeDebug > 0.5 ? texture2DLodEXT(s, vAobakeUV, 0.0) : texture2D(s, vAobakeUV);
+}
+vec3 aobakeRelight() {
+  vec4 a = aobakeTexel(aobakeSH0) * aobakeScale0 + aobakeOffset0;
+  vec4 b = aobakeTexel(aobakeSH1) * aobakeScale1 + aobakeOffset1;
+  float c8 = aobakeTexel(aobakeSH2).r * aobakeScale2.x + aobakeOffset2.x;
+  return a.x * aobakeL0 + a.y * aobakeL1 + a.z * aobakeL2 + a.w * aobakeL3
+    + b.x * aobakeL4 + b.y * aobakeL5 + b.z * aobakeL6 + b.w * aobakeL7 + c8 * aobakeL8;
+}
+#endif`,
+      '!vec3 finalIrradiance=reflectionOut\\.environmentIrradiance;': `vec3 finalIrradiance=reflectionOut.environmentIrradiance;
+#ifdef AOBAKE
+if (aobakeMode > 1.5) finalIrradiance = aobakeRelight();
+#endif`,
+      '!finalIrradiance\\*=aoOut\\.ambientOcclusionColor;': `#ifdef AOBAKE
+if (aobakeMode > 0.5 && aobakeMode < 1.5) finalIrradiance*=aoOut.ambientOcclusionColor;
+#else
+finalIrradiance*=aoOut.ambientOcclusionColor;
+#endif`,
+      CUSTOM_FRAGMENT_MAIN_END: `#ifdef AOBAKE
+if (aobakeDebug > 4.5) gl_FragColor = vec4(vAobakeUV, aobakeRelight().r, aobakePage + 1.0);
+else if (aobakeDebug > 3.5) gl_FragColor = vec4(aobakePage, 0.0, 0.0, 1.0);
+else if (aobakeDebug > 2.5) gl_FragColor = vec4(vAobakeUV, 0.0, 1.0);
+else if (aobakeDebug > 1.5) gl_FragColor = vec4(vec3(aobakeTexel(aobakeAO).r), 1.0);
+else if (aobakeDebug > 0.5) gl_FragColor = vec4(aobakeRelight(), 1.0);
+#endif`,
+    };
+  }
+}
+
+/** The glTF loader extension: binds every baked primitive once the file is loaded. */
+class AobakeLightmapExtension {
+  constructor(loader, lightmaps) {
+    this.name = EXTENSION;
+    this.enabled = true;
+    this._loader = loader;
+    this._lightmaps = lightmaps;
+  }
+
+  dispose() {
+    this._loader = null;
+  }
+
+  async onReady() {
+    const loader = this._loader;
+    const lm = this._lightmaps;
+    const json = loader.gltf;
+    const scene = loader.babylonScene;
+    lm.clear();
+    lm._scene = scene;
+    lm.record = json.extensions?.[EXTENSION] ?? null;
+    const root = loader.rootBabylonMesh;
+    if (root) {
+      root.computeWorldMatrix(true);
+      const m = root.getWorldMatrix().m; // column-major 4x4
+      lm.toScene = [m[0], m[4], m[8], m[1], m[5], m[9], m[2], m[6], m[10]];
+    }
+    const materials = new Map(); // (material, page) -> cloned material
+    const textures = new Map(); // texture index -> Babylon texture
+    const texture = async (index, context) => {
+      if (!textures.has(index)) {
+        // nonColorData: linear data, not an sRGB buffer (which the loader
+        // otherwise picks, and which the sampler would decode to linear).
+        textures.set(index, loader.loadTextureInfoAsync(context, { index, nonColorData: true }, (t) => {
+          t.gammaSpace = false;
+          t.wrapU = t.wrapV = Texture.CLAMP_ADDRESSMODE;
+        }));
+      }
+      return textures.get(index);
+    };
+    for (const mesh of scene.meshes) {
+      const pointer = (mesh._internalMetadata?.gltf?.pointers ?? []).find((p) => /^\/meshes\/\d+\/primitives\/\d+$/.test(p));
+      if (!pointer || mesh.isAnInstance) continue;
+      const [mi, pi] = pointer.match(/\d+/g).map(Number);
+      const prim = json.meshes?.[mi]?.primitives?.[pi];
+      const ext = prim?.extensions?.[EXTENSION];
+      if (ext === undefined) continue;
+      const label = `meshes[${mi}].primitives[${pi}]`;
+      const problem = extensionProblem(ext, json);
+      if (problem) {
+        lm.problems.push(`${label} ${EXTENSION}: ${problem}`);
+        continue;
+      }
+      const uvName = ext.texCoord === 0 ? 'uv' : `uv${ext.texCoord + 1}`;
+      if (!mesh.isVerticesDataPresent(uvName)) {
+        lm.problems.push(`${label} ${EXTENSION}: no TEXCOORD_${ext.texCoord}`);
+        continue;
+      }
+      let loaded;
+      try {
+        const ctx = `${pointer}/extensions/${EXTENSION}`;
+        loaded = await Promise.all([
+          texture(ext.occlusion.index, `${ctx}/occlusion`),
+          ...ext.sh.map((r, i) => texture(r.index, `${ctx}/sh/${i}`)),
+        ]);
+      } catch (e) {
+        lm.problems.push(`${label} ${EXTENSION}: a texture does not load (${e.message ?? e})`);
+        continue;
+      }
+      const [occlusion, ...sh] = loaded;
+      const base = mesh.material;
+      if (!base) {
+        lm.problems.push(`${label} ${EXTENSION}: the primitive has no material to relight`);
+        continue;
+      }
+      const key = `${base.uniqueId}/${ext.page ?? 0}/${ext.texCoord}`;
+      let material = materials.get(key);
+      if (!material) {
+        material = base.clone(`${base.name} (${EXTENSION} page ${ext.page ?? 0})`);
+        // The baked AO on the ambient slot where the material has none.
+        if (!material.ambientTexture && 'ambientTexture' in material) {
+          material.ambientTexture = occlusion;
+          occlusion.coordinatesIndex = ext.texCoord;
+          if ('useAmbientInGrayScale' in material) material.useAmbientInGrayScale = true;
+        }
+        new AobakeLightmapPlugin(material, lm, {
+          texCoord: ext.texCoord, occlusion, sh, scale: ext.shScale, offset: ext.shOffset, page: ext.page ?? 0,
+        });
+        materials.set(key, material);
+      }
+      for (const m of [mesh, ...(mesh.instances ?? [])]) m.material = material;
+      lm.baked.push({ mesh, label, extension: ext, material, textures: [occlusion, ...sh] });
+    }
+  }
+}
+
+/** Registers the loader extension; every glTF loaded afterwards is bound to `lightmaps`. */
+export function registerAobakeLightmap(lightmaps) {
+  registerGLTFExtension(EXTENSION, false, (loader) => new AobakeLightmapExtension(loader, lightmaps));
+}
