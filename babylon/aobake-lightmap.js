@@ -56,8 +56,9 @@ export { EXTENSION };
 export const MODES = { off: 0, ao: 1, sh: 2 };
 
 /** Debug outputs (raw, for tests): c.L, the AO texture, the lightmap UV,
- * the atlas page, and (u, v, red of c.L, page + 1) from one fragment. */
-export const DEBUG = { none: 0, irradiance: 1, ao: 2, uv: 3, page: 4, uvIrradiancePage: 5 };
+ * the atlas page, (u, v, red of c.L, page + 1) from one fragment, and
+ * Babylon's own diffuse environment light E/pi (what 'sh' replaces). */
+export const DEBUG = { none: 0, irradiance: 1, ao: 2, uv: 3, page: 4, uvIrradiancePage: 5, environment: 6 };
 
 /** The 9 real SH basis functions (the contract's order and constants). */
 export function basis9([x, y, z]) {
@@ -336,7 +337,14 @@ if (aobakeMode > 0.5 && aobakeMode < 1.5) finalIrradiance*=aoOut.ambientOcclusio
 finalIrradiance*=aoOut.ambientOcclusionColor;
 #endif`,
       CUSTOM_FRAGMENT_MAIN_END: `#ifdef AOBAKE
-if (aobakeDebug > 4.5) gl_FragColor = vec4(vAobakeUV, aobakeRelight().r, aobakePage + 1.0);
+if (aobakeDebug > 5.5) {
+#ifdef REFLECTION
+  gl_FragColor = vec4(reflectionOut.environmentIrradiance, 1.0);
+#else
+  gl_FragColor = vec4(0.0, 0.0, 0.0, 1.0);
+#endif
+}
+else if (aobakeDebug > 4.5) gl_FragColor = vec4(vAobakeUV, aobakeRelight().r, aobakePage + 1.0);
 else if (aobakeDebug > 3.5) gl_FragColor = vec4(aobakePage, 0.0, 0.0, 1.0);
 else if (aobakeDebug > 2.5) gl_FragColor = vec4(vAobakeUV, 0.0, 1.0);
 else if (aobakeDebug > 1.5) gl_FragColor = vec4(vec3(aobakeTexel(aobakeAO).r), 1.0);

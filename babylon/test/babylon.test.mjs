@@ -17,7 +17,7 @@ import { readFileSync, writeFileSync, existsSync } from 'node:fs';
 import { basename, extname, join, normalize } from 'node:path';
 import { build } from 'esbuild';
 import { bake, launch, repoDir, sharedAssets, tempDir, tiltedPlane } from '../../viewer/test/harness.mjs';
-import { coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage } from '../../viewer/test/decode.mjs';
+import { coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage, writeGlb } from '../../viewer/test/decode.mjs';
 
 const dir = tempDir();
 const files = {};
@@ -90,7 +90,7 @@ function decoded(path) {
 before(async () => {
   files.cornell = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell.glb'), ['--resolution', '256', '--rays', '64']);
   files.plane = bake(tiltedPlane(join(dir, 'plane_in.glb'), {
-    material: { pbrMetallicRoughness: { metallicFactor: 0, roughnessFactor: 1 }, doubleSided: true },
+    material: { pbrMetallicRoughness: { metallicFactor: 0, roughnessFactor: 1 } },
   }), join(dir, 'plane.glb'), ['--resolution', '64', '--rays', '4096']);
   if (existsSync(join(sharedAssets, 'sponza_dabrovic.glb'))) {
     files.sponzaPages = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza_pages.glb'),
@@ -101,7 +101,7 @@ before(async () => {
     entryPoints: [join(repoDir, 'babylon/test/page.js')], bundle: true, format: 'esm',
     outfile: join(dir, 'page.bundle.js'), logLevel: 'error',
   });
-  writeFileSync(join(dir, 'page.html'), `<!doctype html><meta charset="utf-8"><title>aobake Babylon.js test</title>
+  writeFileSync(join(dir, 'page.html'), `<!doctype html><meta charset="utf-8"><title>aobake Babylon.js test</title><link rel="icon" href="data:,">
 <style>html, body { margin: 0; } canvas { width: 640px; height: 480px; display: block; }</style>
 <canvas id="view" width="640" height="480"></canvas><script type="module" src="page.bundle.js"></script>`);
   await startServer();
@@ -201,7 +201,63 @@ test('Cornell box: uniform and directional environments relight as the decoded t
 });
 
 test('a tilted open plane: every coefficient matters', async () => {
-  await relightMatches('plane', ['lobe+x', 'lobe+y', 'lobe+z'], [[-Math.PI / 2, Math.PI / 3], [0.4, 1.0]]);
+  await relightMatches('plane', ['lobe+x', 'lobe+y', 'lobe+z'], [[0.4, 1.0], [1.2, 0.8]]);
+});
+
+test('an open receiver relights as Babylon lights it from its own environment', async () => {
+  // The plane is open: its c_i are the cosine lobe's (A_l / pi) Y_i(n) up
+  // to the bake's noise (4096 rays), so c.L must equal what Babylon's PBR
+  // shader computes for the same environment at the same fragment.
+  const page = await openPage();
+  await page.evaluate((u) => window.aobakeBabylon.load(u), `/files/${basename(files.plane)}`);
+  const size = await page.evaluate(() => window.aobakeBabylon.size());
+  const pixels = grid(size, 8);
+  // The front face (the baked side; back faces are culled).
+  await page.evaluate(() => window.aobakeBabylon.view(0.4, 1.0));
+  for (const env of ['white', 'lobe+x', 'lobe+y', 'lobe+z']) {
+    await page.evaluate((n) => window.aobakeBabylon.setEnvironment(n), env);
+    const relit = await page.evaluate(([d, p]) => window.aobakeBabylon.probe(d, p), ['irradiance', pixels]);
+    const own = await page.evaluate(([d, p]) => window.aobakeBabylon.probe(d, p), ['environment', pixels]);
+    let n = 0;
+    let sum = 0;
+    let worst = 0;
+    let level = 0;
+    for (let k = 0; k < pixels.length; k++) {
+      if (relit[k][3] !== 1 || own[k][3] !== 1) continue;
+      const d = Math.abs(relit[k][0] - own[k][0]);
+      sum += d;
+      worst = Math.max(worst, d);
+      level = Math.max(level, own[k][0]);
+      n++;
+    }
+    assert.ok(n > 300, `${n} pixels`);
+    console.log(`# open plane ${env}: Babylon's own E/pi up to ${level.toFixed(4)}; c.L against it: mean ${(sum / n).toFixed(5)}, max ${worst.toFixed(5)} over ${n} pixels`);
+    assert.ok(worst <= 0.02 * level + 0.004, `${env}: ${worst} against ${level}`);
+  }
+  assert.deepEqual(page.errors, []);
+  await page.close();
+});
+
+test('malformed extensions are reported by primitive, and the rest still relights', async () => {
+  const glb = readGlb(readFileSync(files.cornell));
+  const prims = glb.json.meshes.flatMap((m, mi) => m.primitives.map((p, pi) => [mi, pi, p]))
+    .filter(([, , p]) => p.extensions?.AOBAKE_lightmap);
+  const [m0, p0, a] = prims[0];
+  const [m1, p1, b] = prims[1];
+  a.extensions.AOBAKE_lightmap.shScale = [1, 2, 3];
+  b.extensions.AOBAKE_lightmap.sh[1] = { index: 999 };
+  const path = join(dir, 'cornell_broken.glb');
+  writeFileSync(path, writeGlb(glb.json, glb.bin));
+  const page = await openPage();
+  const status = await page.evaluate((u) => window.aobakeBabylon.load(u), `/files/${basename(path)}`);
+  console.log(`# malformed: ${JSON.stringify(status.problems)}`);
+  assert.deepEqual(status.problems, [
+    `meshes[${m0}].primitives[${p0}] AOBAKE_lightmap: shScale must hold 9 numbers (has 3)`,
+    `meshes[${m1}].primitives[${p1}] AOBAKE_lightmap: sh[1] names textures[999], which does not exist`,
+  ]);
+  assert.equal(status.baked, prims.length - 2);
+  assert.deepEqual(page.errors, []);
+  await page.close();
 });
 
 test('Sponza on several atlas pages: each primitive reads its own page', async (t) => {
