@@ -87,9 +87,11 @@ window.aobakeBabylon = {
   },
   toScene: () => lightmaps.toScene,
   setMode: (m) => lightmaps.setMode(m),
-  view(alpha, beta) {
+  /** Camera angles, and optionally its distance as a share of the view's. */
+  view(alpha, beta, radius) {
     camera.alpha = alpha;
     camera.beta = beta;
+    if (radius) camera.radius *= radius / 0.9;
   },
   size: () => [engine.getRenderWidth(), engine.getRenderHeight()],
   /** [r, g, b, a] at each pixel [x, y] (from the top left) of a float
