@@ -190,13 +190,6 @@ pub(super) fn view_bytes<'d>(
         .get(view)
         .ok_or_else(|| Error::Invalid(format!("{what}: bufferView {view} does not exist")))?;
     let vw = format!("bufferViews[{view}]");
-    if v.pointer("/extensions/EXT_meshopt_compression").is_some()
-        || v.pointer("/extensions/KHR_meshopt_compression").is_some()
-    {
-        return Err(Error::Unsupported(format!(
-            "{vw} uses meshopt compression (EXT_meshopt_compression); decompress the file first (e.g. gltf-transform copy)"
-        )));
-    }
     let buffer = field_usize(v, "buffer", &vw)?
         .ok_or_else(|| Error::Invalid(format!("{vw}.buffer is missing")))?;
     let data = doc

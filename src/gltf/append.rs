@@ -15,6 +15,15 @@ pub(super) struct Bin {
 }
 
 impl Bin {
+    /// The BIN buffer of a document whose `buffers[0]` is the GLB BIN
+    /// chunk: its declared bytes (the chunk may be padded past them).
+    pub(super) fn of(doc: &super::container::Document) -> Bin {
+        let len = doc.json["buffers"][0]["byteLength"].as_u64().unwrap_or(0) as usize;
+        Bin {
+            data: doc.buffers[0][..len.min(doc.buffers[0].len())].to_vec(),
+        }
+    }
+
     pub(super) fn push_view(
         &mut self,
         json: &mut Value,

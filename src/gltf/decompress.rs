@@ -65,9 +65,7 @@ pub fn decompress(doc: &mut Document) -> Result<Vec<String>> {
         doc.glb_bin = true;
     }
     let mut warnings = Vec::new();
-    let mut bin = Bin {
-        data: take_bin(doc),
-    };
+    let mut bin = Bin::of(doc);
 
     // Meshopt views: decoded first, so a Draco stream could sit in one.
     let mut decoded_views = Vec::with_capacity(meshopt_views.len());
@@ -115,15 +113,13 @@ pub fn decompress(doc: &mut Document) -> Result<Vec<String>> {
             else {
                 continue;
             };
-            let raw = RawAccessor {
-                component: Component::from_gl(attr.component_type() as u64)
-                    .expect("a glTF component type"),
-                dims: attr.components() as usize,
-                normalized: attr.normalized(),
-                count: attr.count(),
-                type_name: type_name(attr.components())?.to_string(),
-                bytes: attr.bytes().to_vec(),
-            };
+            let raw = packed(
+                attr.component_type(),
+                attr.components(),
+                attr.normalized(),
+                attr.count(),
+                attr.bytes(),
+            )?;
             let xref: Vec<u32> = (0..attr.count() as u32).collect();
             let new = gather_accessor(&mut json, &mut bin, &raw, &xref, true);
             let index = replace_accessor(&mut json, old as usize, new, &mut done);
@@ -135,17 +131,14 @@ pub fn decompress(doc: &mut Document) -> Result<Vec<String>> {
             geometry.indices(),
             prim.get("indices").and_then(Value::as_u64),
         ) {
-            let list: Vec<u32> = indices
-                .bytes()
-                .chunks_exact(
-                    Component::from_gl(indices.component_type() as u64).map_or(4, Component::size),
-                )
-                .map(|b| match b.len() {
-                    1 => b[0] as u32,
-                    2 => u16::from_le_bytes([b[0], b[1]]) as u32,
-                    _ => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-                })
-                .collect();
+            let list = packed(
+                indices.component_type(),
+                1,
+                false,
+                indices.count(),
+                indices.bytes(),
+            )?
+            .to_indices(&format!("{what} indices"))?;
             let new = index_accessor(&mut json, &mut bin, &list, geometry.vertex_count());
             let index = replace_accessor(&mut json, old as usize, new, &mut done);
             json.pointer_mut(&prim_path).expect("the primitive")["indices"] = json!(index);
@@ -164,16 +157,29 @@ pub fn decompress(doc: &mut Document) -> Result<Vec<String>> {
     Ok(warnings)
 }
 
-/// The BIN buffer's bytes (its declared length).
-fn take_bin(doc: &Document) -> Vec<u8> {
-    let len = doc.json["buffers"][0]["byteLength"].as_u64().unwrap_or(0) as usize;
-    doc.buffers[0][..len.min(doc.buffers[0].len())].to_vec()
-}
-
 /// Makes `data` the BIN buffer.
 fn put_bin(doc: &mut Document, data: &[u8]) {
     doc.json["buffers"][0]["byteLength"] = json!(data.len());
     doc.buffers[0] = data.to_vec();
+}
+
+/// A decoded attribute or index stream as a [`RawAccessor`] (tightly
+/// packed, in its glTF component type).
+fn packed(
+    component: draco_gltf::ComponentType,
+    dims: u8,
+    normalized: bool,
+    count: usize,
+    bytes: &[u8],
+) -> Result<RawAccessor> {
+    Ok(RawAccessor {
+        component: Component::from_gl(component as u64).expect("a glTF component type"),
+        dims: dims as usize,
+        normalized,
+        count,
+        type_name: type_name(dims)?.to_string(),
+        bytes: bytes.to_vec(),
+    })
 }
 
 /// The accessor `type` of `n` components.

@@ -107,10 +107,7 @@ pub fn build_glb(
     let record = &options.record;
     let mut json = doc.json.clone();
     let mut bin = if doc.glb_bin {
-        let len = json["buffers"][0]["byteLength"].as_u64().unwrap_or(0) as usize;
-        Bin {
-            data: doc.buffers[0][..len.min(doc.buffers[0].len())].to_vec(),
-        }
+        Bin::of(doc)
     } else {
         insert_bin_buffer(&mut json);
         Bin { data: Vec::new() }
