@@ -27,9 +27,16 @@
 // - channels: c0..c3 = sh[0].rgba, c4..c7 = sh[1].rgba, c8 = sh[2].r; the
 //   textures hold linear data (gammaSpace false), clamp to edge.
 //
-// Not read here: the visibility layer (`visibility`, normal-mapped relight
-// and specular occlusion); a primitive that has it relights at its vertex
-// normal, as c.L.
+// The visibility layer (`visibility[4|3]`, v_i = Int V H(n.w) Y_i dw, 16 or
+// 9 coefficients), where a primitive has it, lets the normal map drive the
+// baked light exactly as the three.js plugin does (the contract's formula):
+// per environment P_ik = sum_j Gamma_ijk L_j (a 16 x 16 float texture), per
+// fragment u = P^T v and E(n')/pi = c.L + E_C(n')/pi - E_C(n)/pi, with n the
+// vertex normal and n' Babylon's normal-mapped one, both taken back into the
+// bake's frame (normals by M^T, M the root's linear part); and the indirect
+// specular is occluded by the lobe-filtered visible radiance over an open
+// receiver's (in place of Babylon's AO-based radiance occlusion). Without
+// the layer, the specular keeps Babylon's own occlusion from the baked AO.
 //
 // Imports: @babylonjs/core and @babylonjs/loaders (pinned in package.json),
 // and the engine-neutral ../viewer/aobake-extension.js (the extension's name
@@ -45,9 +52,14 @@
 
 import { MaterialPluginBase } from '@babylonjs/core/Materials/materialPluginBase.js';
 import { Texture } from '@babylonjs/core/Materials/Textures/texture.js';
-import { Matrix, Vector3 } from '@babylonjs/core/Maths/math.vector.js';
 import { registerGLTFExtension } from '@babylonjs/loaders/glTF/2.0/glTFLoaderExtensionRegistry.js';
+import { RawTexture } from '@babylonjs/core/Materials/Textures/rawTexture.js';
+import { RenderTargetTexture } from '@babylonjs/core/Materials/Textures/renderTargetTexture.js';
+import { Color4 } from '@babylonjs/core/Maths/math.color.js';
+import { Constants } from '@babylonjs/core/Engines/constants.js';
 import { EXTENSION, extensionProblem as contractProblem } from '../viewer/aobake-extension.js';
+import { basis9, project, radianceProduct } from '../viewer/aobake-sh.js';
+import { LAYER_GLSL } from './glsl.js';
 
 export { EXTENSION };
 
@@ -58,51 +70,15 @@ export const MODES = { off: 0, ao: 1, sh: 2 };
 /** Debug outputs (raw, for tests): c.L, the AO texture, the lightmap UV,
  * the atlas page, (u, v, red of c.L, page + 1) from one fragment, and
  * Babylon's own diffuse environment light E/pi (what 'sh' replaces). */
-export const DEBUG = { none: 0, irradiance: 1, ao: 2, uv: 3, page: 4, uvIrradiancePage: 5, environment: 6 };
+export const DEBUG = {
+  none: 0, irradiance: 1, ao: 2, uv: 3, page: 4, uvIrradiancePage: 5, environment: 6,
+  // With the visibility layer: the normal-mapped diffuse over pi (the
+  // anchored formula), the shading normal n' and the vertex normal n in
+  // the bake's frame as 0.5 + 0.5 n, and the specular occlusion.
+  mapped: 7, shadingNormal: 8, vertexNormal: 9, specularOcclusion: 10,
+};
 
-/** The 9 real SH basis functions (the contract's order and constants). */
-export function basis9([x, y, z]) {
-  return [
-    0.282095, 0.488603 * y, 0.488603 * z, 0.488603 * x,
-    1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1),
-    1.092548 * x * z, 0.546274 * (x * x - y * y),
-  ];
-}
-
-/** Integrates f(w) Y_i(w) over the sphere for the 9 basis functions:
- * 16-point Gauss-Legendre in z x 32 azimuths (exact to degree 8 in z). */
-export function project(f) {
-  const out = Array.from({ length: 9 }, () => [0, 0, 0]);
-  const n = 16;
-  for (let i = 0; i < n; i++) {
-    // Gauss-Legendre node and weight by Newton on P_n.
-    let t = Math.cos((Math.PI * (i + 0.75)) / (n + 0.5));
-    let w = 0;
-    for (let it = 0; it < 100; it++) {
-      let p0 = 1;
-      let p1 = t;
-      for (let k = 2; k <= n; k++) [p0, p1] = [p1, ((2 * k - 1) * t * p1 - (k - 1) * p0) / k];
-      const dp = (n * (t * p1 - p0)) / (t * t - 1);
-      const step = p1 / dp;
-      t -= step;
-      if (Math.abs(step) < 1e-15) {
-        w = 2 / ((1 - t * t) * dp * dp);
-        break;
-      }
-    }
-    const r = Math.sqrt(Math.max(0, 1 - t * t));
-    const az = 32;
-    for (let a = 0; a < az; a++) {
-      const phi = ((a + 0.5) / az) * 2 * Math.PI;
-      const dir = [r * Math.cos(phi), r * Math.sin(phi), t];
-      const y = basis9(dir);
-      const v = f(dir);
-      const dw = (w * 2 * Math.PI) / az;
-      for (let k = 0; k < 9; k++) for (let c = 0; c < 3; c++) out[k][c] += dw * y[k] * v[c];
-    }
-  }
-  return out;
-}
+export { basis9, project };
 
 /** Band of coefficient i. */
 const band = (i) => (i === 0 ? 0 : i < 4 ? 1 : 2);
@@ -171,11 +147,14 @@ export class AobakeLightmaps {
     /** Row-major 3x3: glTF world directions to the scene's (the loader's root). */
     this.toScene = [1, 0, 0, 0, 1, 0, 0, 0, 1];
     this._scene = null;
+    /** P (16 x 16 RGBA float), made once a scene is known. */
+    this.product = null;
   }
 
   /** Radiance SH in the bake's frame, 9 x [r, g, b]. */
   setEnvironment(L) {
     this.L = L.map((c) => [c[0], c[1], c[2]]);
+    this.product?.update(radianceProduct(this.L));
     this._scene?.resetCachedMaterial();
   }
 
@@ -191,6 +170,8 @@ export class AobakeLightmaps {
   setMode(mode) {
     if (!(mode in MODES)) throw new Error(`unknown mode ${mode}`);
     this.mode = MODES[mode];
+    // The mode decides which occlusion the specular gets (a define).
+    for (const b of this.baked) b.material.markAsDirty(1);
     this._scene?.resetCachedMaterial();
   }
 
@@ -209,6 +190,66 @@ export class AobakeLightmaps {
     }
   }
 
+  /** Normal maps on (the materials' own) or off (removed: the shading
+   * normal is then the vertex normal, and the bake relights as c.L). */
+  setNormalMaps(on) {
+    for (const b of this.baked) {
+      const m = b.material;
+      if (!on && m.bumpTexture) {
+        b.bump = m.bumpTexture;
+        m.bumpTexture = null;
+      } else if (on && b.bump) {
+        m.bumpTexture = b.bump;
+        b.bump = null;
+      }
+    }
+  }
+
+  /**
+   * Renders the baked meshes of `scene` through `camera` with debug output
+   * `debug` (raw floats, lightmaps at level 0) and returns [r, g, b, a] at
+   * each pixel [x, y] (from the top left) of a `width` x `height` frame;
+   * a = 0 where no baked mesh is. For tests and diagnostics.
+   */
+  async probe(scene, camera, debug, pixels, [width, height]) {
+    const rtt = new RenderTargetTexture('aobake probe', { width, height }, scene, {
+      generateMipMaps: false, type: Constants.TEXTURETYPE_FLOAT,
+    });
+    rtt.renderList = this.baked.map((b) => b.mesh);
+    rtt.activeCamera = camera;
+    rtt.clearColor = new Color4(0, 0, 0, 0);
+    this.setLevel0(true);
+    this.setDebug(debug);
+    const wait = (ms) => new Promise((r) => setTimeout(r, ms));
+    await new Promise((ok) => scene.executeWhenReady(ok));
+    for (let k = 0; k < 200 && !rtt.isReadyForRendering(); k++) await wait(20);
+    // Shaders compile asynchronously: render until every material is ready.
+    for (let k = 0; k < 200; k++) {
+      rtt.render();
+      if (rtt.renderList.every((m) => m.material.isReady(m))) break;
+      await wait(50);
+    }
+    rtt.render();
+    const data = await rtt.readPixels();
+    this.setDebug('none');
+    this.setLevel0(false);
+    rtt.dispose();
+    return pixels.map(([x, y]) => {
+      const o = ((height - 1 - y) * width + x) * 4;
+      return [data[o], data[o + 1], data[o + 2], data[o + 3]];
+    });
+  }
+
+  /** The shared P texture of `scene`. */
+  _productFor(scene) {
+    if (!this.product || this.product.getScene() !== scene) {
+      this.product = new RawTexture(radianceProduct(this.L), 16, 16, Constants.TEXTUREFORMAT_RGBA, scene,
+        false, false, Texture.NEAREST_SAMPLINGMODE, Constants.TEXTURETYPE_FLOAT);
+      this.product.name = 'aobake P';
+    }
+    return this.product;
+  }
+
   clear() {
     this.baked = [];
     this.problems = [];
@@ -216,12 +257,29 @@ export class AobakeLightmaps {
   }
 }
 
-/** The material plugin: c.L in place of the PBR diffuse environment light. */
+/** Rows of M^T and M^-1 for M (row-major 3x3): normals and directions of
+ * the scene into the bake's frame. */
+export function toBakeRows(m) {
+  const det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) + m[2] * (m[3] * m[7] - m[4] * m[6]);
+  const inv = [
+    m[4] * m[8] - m[5] * m[7], m[2] * m[7] - m[1] * m[8], m[1] * m[5] - m[2] * m[4],
+    m[5] * m[6] - m[3] * m[8], m[0] * m[8] - m[2] * m[6], m[2] * m[3] - m[0] * m[5],
+    m[3] * m[7] - m[4] * m[6], m[1] * m[6] - m[0] * m[7], m[0] * m[4] - m[1] * m[3],
+  ].map((v) => v / (det || 1));
+  const normal = [[m[0], m[3], m[6]], [m[1], m[4], m[7]], [m[2], m[5], m[8]]];
+  const direction = [inv.slice(0, 3), inv.slice(3, 6), inv.slice(6, 9)];
+  return { normal, direction };
+}
+
+/** The material plugin: c.L in place of the PBR diffuse environment light,
+ * and with the layer the normal-mapped diffuse and specular occlusion. */
 export class AobakeLightmapPlugin extends MaterialPluginBase {
   constructor(material, lightmaps, bake) {
-    super(material, 'AobakeLightmap', 200, { AOBAKE: false, AOBAKE_UVSET: 0 });
+    super(material, 'AobakeLightmap', 200, { AOBAKE: false, AOBAKE_UVSET: 0, AOBAKE_VISIBILITY: false, AOBAKE_VCOUNT: 16 });
     this.lightmaps = lightmaps;
-    this.bake = bake; // { texCoord, occlusion, sh: [3 textures], scale[9], offset[9], page }
+    // { texCoord, occlusion, sh: [3 textures], scale[9], offset[9], page,
+    //   visibility: [3|4 textures] | null, vScale[], vOffset[] }
+    this.bake = bake;
     this._enable(true);
   }
 
@@ -232,6 +290,12 @@ export class AobakeLightmapPlugin extends MaterialPluginBase {
   prepareDefines(defines) {
     defines.AOBAKE = true;
     defines.AOBAKE_UVSET = this.bake.texCoord + 1;
+    const layer = this.bake.visibility !== null;
+    defines.AOBAKE_VISIBILITY = layer;
+    defines.AOBAKE_VCOUNT = layer ? this.bake.vScale.length : 16;
+    // With the layer and the baked light on, the layer occludes the
+    // specular; Babylon's AO-based radiance occlusion would do it twice.
+    if (layer && this.lightmaps.mode === MODES.sh) defines.RADIANCEOCCLUSION = false;
   }
 
   getAttributes(attributes, scene, mesh) {
@@ -240,24 +304,26 @@ export class AobakeLightmapPlugin extends MaterialPluginBase {
   }
 
   getSamplers(samplers) {
-    samplers.push('aobakeSH0', 'aobakeSH1', 'aobakeSH2', 'aobakeAO');
+    samplers.push('aobakeSH0', 'aobakeSH1', 'aobakeSH2', 'aobakeAO', 'aobakeV0', 'aobakeV1', 'aobakeV2', 'aobakeV3', 'aobakeP');
   }
 
   getUniforms() {
-    const names = ['aobakeScale0', 'aobakeScale1', 'aobakeScale2', 'aobakeOffset0', 'aobakeOffset1', 'aobakeOffset2'];
+    const v4 = ['aobakeScale0', 'aobakeScale1', 'aobakeScale2', 'aobakeOffset0', 'aobakeOffset1', 'aobakeOffset2',
+      'aobakeVScale0', 'aobakeVScale1', 'aobakeVScale2', 'aobakeVScale3',
+      'aobakeVOffset0', 'aobakeVOffset1', 'aobakeVOffset2', 'aobakeVOffset3'];
+    const v3 = [...Array.from({ length: 9 }, (_, i) => `aobakeL${i}`),
+      'aobakeNormalRow0', 'aobakeNormalRow1', 'aobakeNormalRow2',
+      'aobakeDirectionRow0', 'aobakeDirectionRow1', 'aobakeDirectionRow2'];
+    const f = ['aobakeMode', 'aobakeDebug', 'aobakePage'];
     const ubo = [
-      ...names.map((name) => ({ name, size: 4, type: 'vec4' })),
-      ...Array.from({ length: 9 }, (_, i) => ({ name: `aobakeL${i}`, size: 3, type: 'vec3' })),
-      { name: 'aobakeMode', size: 1, type: 'float' },
-      { name: 'aobakeDebug', size: 1, type: 'float' },
-      { name: 'aobakePage', size: 1, type: 'float' },
+      ...v4.map((name) => ({ name, size: 4, type: 'vec4' })),
+      ...v3.map((name) => ({ name, size: 3, type: 'vec3' })),
+      ...f.map((name) => ({ name, size: 1, type: 'float' })),
     ];
     const fragment = `#ifdef AOBAKE
-${names.map((n) => `uniform vec4 ${n};`).join('\n')}
-${Array.from({ length: 9 }, (_, i) => `uniform vec3 aobakeL${i};`).join('\n')}
-uniform float aobakeMode;
-uniform float aobakeDebug;
-uniform float aobakePage;
+${v4.map((n) => `uniform vec4 ${n};`).join('\n')}
+${v3.map((n) => `uniform vec3 ${n};`).join('\n')}
+${f.map((n) => `uniform float ${n};`).join('\n')}
 #endif`;
     return { ubo, fragment };
   }
@@ -270,7 +336,16 @@ uniform float aobakePage;
       uniformBuffer.updateFloat4(`aobakeScale${j}`, ...v4(b.scale, 4 * j));
       uniformBuffer.updateFloat4(`aobakeOffset${j}`, ...v4(b.offset, 4 * j));
     }
+    for (let j = 0; j < 4; j++) {
+      uniformBuffer.updateFloat4(`aobakeVScale${j}`, ...v4(b.vScale, 4 * j));
+      uniformBuffer.updateFloat4(`aobakeVOffset${j}`, ...v4(b.vOffset, 4 * j));
+    }
     for (let i = 0; i < 9; i++) uniformBuffer.updateFloat3(`aobakeL${i}`, ...lm.L[i]);
+    const rows = toBakeRows(lm.toScene);
+    for (let r = 0; r < 3; r++) {
+      uniformBuffer.updateFloat3(`aobakeNormalRow${r}`, ...rows.normal[r]);
+      uniformBuffer.updateFloat3(`aobakeDirectionRow${r}`, ...rows.direction[r]);
+    }
     uniformBuffer.updateFloat('aobakeMode', lm.mode);
     uniformBuffer.updateFloat('aobakeDebug', lm.debug);
     uniformBuffer.updateFloat('aobakePage', b.page);
@@ -278,14 +353,18 @@ uniform float aobakePage;
     uniformBuffer.setTexture('aobakeSH1', b.sh[1]);
     uniformBuffer.setTexture('aobakeSH2', b.sh[2]);
     uniformBuffer.setTexture('aobakeAO', b.occlusion);
+    if (b.visibility) {
+      for (let j = 0; j < 4; j++) uniformBuffer.setTexture(`aobakeV${j}`, b.visibility[Math.min(j, b.visibility.length - 1)]);
+      uniformBuffer.setTexture('aobakeP', lm._productFor(this._material.getScene()));
+    }
   }
 
   getActiveTextures(active) {
-    active.push(...this.bake.sh, this.bake.occlusion);
+    active.push(...this.bake.sh, this.bake.occlusion, ...(this.bake.visibility ?? []));
   }
 
   hasTexture(texture) {
-    return this.bake.sh.includes(texture) || this.bake.occlusion === texture;
+    return this.bake.sh.includes(texture) || this.bake.occlusion === texture || (this.bake.visibility ?? []).includes(texture);
   }
 
   getCustomCode(shaderType) {
@@ -319,41 +398,82 @@ uniform sampler2D aobakeAO;
 vec4 aobakeTexel(sampler2D s) {
   return aobakeDebug > 0.5 ? texture2DLodEXT(s, vAobakeUV, 0.0) : texture2D(s, vAobakeUV);
 }
-vec3 aobakeRelight() {
+vec3 aobakeIrradiance() {
   vec4 a = aobakeTexel(aobakeSH0) * aobakeScale0 + aobakeOffset0;
   vec4 b = aobakeTexel(aobakeSH1) * aobakeScale1 + aobakeOffset1;
   float c8 = aobakeTexel(aobakeSH2).r * aobakeScale2.x + aobakeOffset2.x;
   return a.x * aobakeL0 + a.y * aobakeL1 + a.z * aobakeL2 + a.w * aobakeL3
     + b.x * aobakeL4 + b.y * aobakeL5 + b.z * aobakeL6 + b.w * aobakeL7 + c8 * aobakeL8;
 }
+#ifdef AOBAKE_VISIBILITY
+uniform sampler2D aobakeV0;
+uniform sampler2D aobakeV1;
+uniform sampler2D aobakeV2;
+uniform sampler2D aobakeV3;
+uniform highp sampler2D aobakeP;
+${LAYER_GLSL}
+#endif
+// The vertex normal n with Babylon's own two-sided flip (as normalW gets).
+vec3 aobakeVertexNormal(vec3 n) {
+#if defined(TWOSIDEDLIGHTING) && defined(NORMAL)
+#if defined(MIRRORED)
+  n = gl_FrontFacing ? -n : n;
+#else
+  n = gl_FrontFacing ? n : -n;
+#endif
+#endif
+  return n;
+}
 #endif`,
       '!vec3 finalIrradiance=reflectionOut\\.environmentIrradiance;': `vec3 finalIrradiance=reflectionOut.environmentIrradiance;
 #ifdef AOBAKE
-if (aobakeMode > 1.5) finalIrradiance = aobakeRelight();
+#ifdef AOBAKE_VISIBILITY
+if (aobakeMode > 1.5) finalIrradiance = aobakeMappedIrradiance(
+  aobakeNormalToBake(aobakeVertexNormal(geometricNormalW)), aobakeNormalToBake(normalW));
+#else
+if (aobakeMode > 1.5) finalIrradiance = aobakeIrradiance();
+#endif
 #endif`,
       '!finalIrradiance\\*=aoOut\\.ambientOcclusionColor;': `#ifdef AOBAKE
 if (aobakeMode > 0.5 && aobakeMode < 1.5) finalIrradiance*=aoOut.ambientOcclusionColor;
 #else
 finalIrradiance*=aoOut.ambientOcclusionColor;
 #endif`,
+      '!vec3 finalRadiance=reflectionOut\\.environmentRadiance\\.rgb;': `vec3 finalRadiance=reflectionOut.environmentRadiance.rgb;
+#if defined(AOBAKE) && defined(AOBAKE_VISIBILITY)
+if (aobakeMode > 1.5) finalRadiance *= aobakeSpecularOcclusion(
+  aobakeNormalToBake(aobakeVertexNormal(geometricNormalW)),
+  aobakeDirectionToBake(reflect(-viewDirectionW, normalW)), roughness);
+#endif`,
       CUSTOM_FRAGMENT_MAIN_END: `#ifdef AOBAKE
-if (aobakeDebug > 5.5) {
+if (aobakeDebug > 5.5 && aobakeDebug < 6.5) {
 #ifdef REFLECTION
   gl_FragColor = vec4(reflectionOut.environmentIrradiance, 1.0);
 #else
   gl_FragColor = vec4(0.0, 0.0, 0.0, 1.0);
 #endif
 }
-else if (aobakeDebug > 4.5) gl_FragColor = vec4(vAobakeUV, aobakeRelight().r, aobakePage + 1.0);
+#ifdef AOBAKE_VISIBILITY
+else if (aobakeDebug > 9.5) gl_FragColor = vec4(vec3(aobakeSpecularOcclusion(
+  aobakeNormalToBake(aobakeVertexNormal(geometricNormalW)),
+  aobakeDirectionToBake(reflect(-viewDirectionW, normalW)), roughness)), 1.0);
+else if (aobakeDebug > 6.5) {
+  vec3 aobakeN = aobakeNormalToBake(aobakeVertexNormal(geometricNormalW));
+  vec3 aobakeNp = aobakeNormalToBake(normalW);
+  gl_FragColor = aobakeDebug > 8.5 ? vec4(0.5 + 0.5 * aobakeN, 1.0)
+    : aobakeDebug > 7.5 ? vec4(0.5 + 0.5 * aobakeNp, 1.0)
+    : vec4(aobakeMappedIrradiance(aobakeN, aobakeNp), 1.0);
+}
+#endif
+else if (aobakeDebug > 4.5) gl_FragColor = vec4(vAobakeUV, aobakeIrradiance().r, aobakePage + 1.0);
 else if (aobakeDebug > 3.5) gl_FragColor = vec4(aobakePage, 0.0, 0.0, 1.0);
 else if (aobakeDebug > 2.5) gl_FragColor = vec4(vAobakeUV, 0.0, 1.0);
 else if (aobakeDebug > 1.5) gl_FragColor = vec4(vec3(aobakeTexel(aobakeAO).r), 1.0);
-else if (aobakeDebug > 0.5) gl_FragColor = vec4(aobakeRelight(), 1.0);
+else if (aobakeDebug > 0.5) gl_FragColor = vec4(aobakeIrradiance(), 1.0);
 #endif`,
     };
   }
 }
-
 /** The glTF loader extension: binds every baked primitive once the file is loaded. */
 class AobakeLightmapExtension {
   constructor(loader, lightmaps) {
@@ -418,18 +538,20 @@ class AobakeLightmapExtension {
         loaded = await Promise.all([
           texture(ext.occlusion.index, `${ctx}/occlusion`),
           ...ext.sh.map((r, i) => texture(r.index, `${ctx}/sh/${i}`)),
+          ...(ext.visibility ?? []).map((r, i) => texture(r.index, `${ctx}/visibility/${i}`)),
         ]);
       } catch (e) {
         lm.problems.push(`${label} ${EXTENSION}: a texture does not load (${e.message ?? e})`);
         continue;
       }
-      const [occlusion, ...sh] = loaded;
+      const [occlusion, sh0, sh1, sh2, ...layer] = loaded;
+      const sh = [sh0, sh1, sh2];
       const base = mesh.material;
       if (!base) {
         lm.problems.push(`${label} ${EXTENSION}: the primitive has no material to relight`);
         continue;
       }
-      const key = `${base.uniqueId}/${ext.page ?? 0}/${ext.texCoord}`;
+      const key = `${base.uniqueId}/${ext.page ?? 0}/${ext.texCoord}/${ext.visibility ? 'layer' : ''}`;
       let material = materials.get(key);
       if (!material) {
         material = base.clone(`${base.name} (${EXTENSION} page ${ext.page ?? 0})`);
@@ -441,11 +563,13 @@ class AobakeLightmapExtension {
         }
         new AobakeLightmapPlugin(material, lm, {
           texCoord: ext.texCoord, occlusion, sh, scale: ext.shScale, offset: ext.shOffset, page: ext.page ?? 0,
+          visibility: layer.length > 0 ? layer : null,
+          vScale: ext.visibilityScale ?? [], vOffset: ext.visibilityOffset ?? [],
         });
         materials.set(key, material);
       }
       for (const m of [mesh, ...(mesh.instances ?? [])]) m.material = material;
-      lm.baked.push({ mesh, label, extension: ext, material, textures: [occlusion, ...sh] });
+      lm.baked.push({ mesh, label, extension: ext, material, textures: loaded, bump: null });
     }
   }
 }

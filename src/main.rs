@@ -117,6 +117,18 @@ struct ViewArgs {
     /// viewer/, three.js in vendor/three) instead of the copy built in
     #[arg(long, value_name = "DIR")]
     viewer_dir: Option<PathBuf>,
+    /// The engine the printed address opens (the page switches too):
+    /// three.js, Babylon.js, or both side by side with one camera
+    #[arg(long, value_enum, default_value_t = ViewEngine::Three)]
+    engine: ViewEngine,
+}
+
+/// `aobake view --engine`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
+enum ViewEngine {
+    Three,
+    Babylon,
+    Both,
 }
 
 /// The flag of a library setting, from the command line's own definition
@@ -280,10 +292,19 @@ fn run_view(cli: &ViewArgs) -> anyhow::Result<()> {
     site.check()?;
     let listener = aobake::view::bind(cli.port)?;
     let addr = listener.local_addr()?;
-    let query = if site.model.is_some() {
-        "?model=/model.glb"
+    let mut query = Vec::new();
+    if site.model.is_some() {
+        query.push("model=/model.glb");
+    }
+    match cli.engine {
+        ViewEngine::Three => {}
+        ViewEngine::Babylon => query.push("engine=babylon"),
+        ViewEngine::Both => query.push("engine=both"),
+    }
+    let query = if query.is_empty() {
+        String::new()
     } else {
-        ""
+        format!("?{}", query.join("&"))
     };
     println!("aobake: viewer at http://{addr}/{query} (Ctrl-C stops it)");
     use std::io::Write;

@@ -18,7 +18,11 @@ fn babylon_relights_bakes_in_a_real_browser() {
     let babylon = root.join("babylon");
     common::run_browser_tests(
         &babylon,
-        &["test/babylon.test.mjs"],
+        &[
+            "--test-concurrency=1",
+            "test/babylon.test.mjs",
+            "test/engines.test.mjs",
+        ],
         &[
             (
                 !root.join("viewer/node_modules/playwright-core").is_dir(),

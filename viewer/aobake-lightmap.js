@@ -55,6 +55,8 @@ import {
   Vector3,
 } from 'three';
 import { EXTENSION, extensionProblem } from './aobake-extension.js';
+import { radianceProduct } from './aobake-sh.js';
+import { VISIBILITY_GLSL } from './aobake-glsl.js';
 
 export { EXTENSION, extensionProblem };
 
@@ -69,81 +71,7 @@ export const DEBUG = {
   mapped: 5, shadingNormal: 6, vertexNormal: 7,
 };
 
-/** The 16 real SH basis functions (the contract's order and constants). */
-export function basis16([x, y, z]) {
-  return [
-    0.282095, 0.488603 * y, 0.488603 * z, 0.488603 * x,
-    1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1),
-    1.092548 * x * z, 0.546274 * (x * x - y * y),
-    0.590044 * y * (3 * x * x - y * y), 2.890611 * x * y * z,
-    0.457046 * y * (5 * z * z - 1), 0.373176 * z * (5 * z * z - 3),
-    0.457046 * x * (5 * z * z - 1), 1.445306 * z * (x * x - y * y),
-    0.590044 * x * (x * x - 3 * y * y),
-  ];
-}
-
-let gauntTable = null;
-/** Gamma_ijk = Int Y_i Y_j Y_k dw (i, k < 16, j < 9) by quadrature: 16
- * Gauss-Legendre points in z (Golub-Welsch by Newton) x 32 in azimuth,
- * exact for these degrees. Flat: g[(i * 9 + j) * 16 + k]. */
-export function gaunt() {
-  if (gauntTable) return gauntTable;
-  const n = 16;
-  const nodes = [];
-  for (let i = 0; i < n; i++) {
-    let t = Math.cos((Math.PI * (i + 0.75)) / (n + 0.5));
-    for (let it = 0; it < 100; it++) {
-      let p0 = 1, p1 = t;
-      for (let k = 2; k <= n; k++) [p0, p1] = [p1, ((2 * k - 1) * t * p1 - (k - 1) * p0) / k];
-      const dp = (n * (t * p1 - p0)) / (t * t - 1);
-      const step = p1 / dp;
-      t -= step;
-      if (Math.abs(step) < 1e-15) {
-        let q0 = 1, q1 = t;
-        for (let k = 2; k <= n; k++) [q0, q1] = [q1, ((2 * k - 1) * t * q1 - (k - 1) * q0) / k];
-        const d = (n * (t * q1 - q0)) / (t * t - 1);
-        nodes.push([t, 2 / ((1 - t * t) * d * d)]);
-        break;
-      }
-    }
-  }
-  const g = new Float64Array(16 * 9 * 16);
-  const az = 32;
-  for (const [z, wz] of nodes) {
-    const r = Math.sqrt(Math.max(0, 1 - z * z));
-    for (let a = 0; a < az; a++) {
-      const phi = ((a + 0.5) / az) * 2 * Math.PI;
-      const y = basis16([r * Math.cos(phi), r * Math.sin(phi), z]);
-      const w = (wz * 2 * Math.PI) / az;
-      for (let i = 0; i < 16; i++) {
-        for (let j = 0; j < 9; j++) {
-          const yij = w * y[i] * y[j];
-          for (let k = 0; k < 16; k++) g[(i * 9 + j) * 16 + k] += yij * y[k];
-        }
-      }
-    }
-  }
-  gauntTable = g;
-  return g;
-}
-
-/** P_ik = sum_j Gamma_ijk L_j for the 9 RGB coefficients `l` (arrays of
- * 3): a 16 x 16 RGBA float array, row i, column k. */
-export function radianceProduct(l) {
-  const g = gaunt();
-  const p = new Float32Array(16 * 16 * 4);
-  for (let i = 0; i < 16; i++) {
-    for (let k = 0; k < 16; k++) {
-      for (let c = 0; c < 3; c++) {
-        let sum = 0;
-        for (let j = 0; j < 9; j++) sum += g[(i * 9 + j) * 16 + k] * l[j][c];
-        p[(i * 16 + k) * 4 + c] = sum;
-      }
-      p[(i * 16 + k) * 4 + 3] = 1;
-    }
-  }
-  return p;
-}
+export { basis16, gaunt, radianceProduct } from './aobake-sh.js';
 
 /**
  * What the plugin found and the uniforms every patched material shares:
@@ -339,28 +267,6 @@ uniform sampler2D aobakeV3;
 uniform float aobakeVScale[16];
 uniform float aobakeVOffset[16];
 uniform sampler2D aobakeP;
-const int AOBAKE_BAND[16] = int[16](0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3);
-
-void aobakeBasis(vec3 w, out float y[16]) {
-  float x = w.x, yy = w.y, z = w.z;
-  y[0] = 0.282095; y[1] = 0.488603 * yy; y[2] = 0.488603 * z; y[3] = 0.488603 * x;
-  y[4] = 1.092548 * x * yy; y[5] = 1.092548 * yy * z; y[6] = 0.315392 * (3.0 * z * z - 1.0);
-  y[7] = 1.092548 * x * z; y[8] = 0.546274 * (x * x - yy * yy);
-  y[9] = 0.590044 * yy * (3.0 * x * x - yy * yy); y[10] = 2.890611 * x * yy * z;
-  y[11] = 0.457046 * yy * (5.0 * z * z - 1.0); y[12] = 0.373176 * z * (5.0 * z * z - 3.0);
-  y[13] = 0.457046 * x * (5.0 * z * z - 1.0); y[14] = 1.445306 * z * (x * x - yy * yy);
-  y[15] = 0.590044 * x * (x * x - 3.0 * yy * yy);
-}
-
-// u = P^T v: the visible radiance's projection (v from the layer, or any
-// 16 coefficients, e.g. an open receiver's).
-void aobakeVisibleRadiance(float v[16], out vec3 u[16]) {
-  for (int k = 0; k < 16; k++) u[k] = vec3(0.0);
-  for (int i = 0; i < AOBAKE_VCOUNT; i++) {
-    for (int k = 0; k < 16; k++) u[k] += v[i] * texelFetch(aobakeP, ivec2(k, i), 0).rgb;
-  }
-}
-
 void aobakeLayer(out float v[16]) {
   vec4 t[4] = vec4[4](texture2D(aobakeV0, vAobakeUv), texture2D(aobakeV1, vAobakeUv),
                       texture2D(aobakeV2, vAobakeUv), texture2D(aobakeV3, vAobakeUv));
@@ -369,51 +275,7 @@ void aobakeLayer(out float v[16]) {
   }
 }
 
-// E_C(m) / pi = (1/pi) sum_{k<9} A_l u_k Y_k(m).
-vec3 aobakeIrradianceAt(vec3 u[16], vec3 m) {
-  float y[16];
-  aobakeBasis(m, y);
-  const float A[3] = float[3](3.14159265, 2.09439510, 0.78539816);
-  vec3 e = vec3(0.0);
-  for (int k = 0; k < 9; k++) e += A[AOBAKE_BAND[k]] * u[k] * y[k];
-  return e / 3.14159265;
-}
-
-// The anchored diffuse over pi at the world shading normal np, for the
-// world vertex normal n: c.L + E_C(np)/pi - E_C(n)/pi.
-vec3 aobakeMappedIrradiance(vec3 n, vec3 np) {
-  float v[16];
-  vec3 u[16];
-  aobakeLayer(v);
-  aobakeVisibleRadiance(v, u);
-  return aobakeIrradiance() + aobakeIrradianceAt(u, np) - aobakeIrradianceAt(u, n);
-}
-
-// Specular occlusion of a lobe of perceptual roughness r about the world
-// direction R: the lobe-filtered visible radiance over an open receiver's
-// (zonal factors exp(-l^2 / (2 s)) of a Phong lobe, s = 2 / alpha^2 - 2).
-float aobakeSpecularOcclusion(vec3 n, vec3 R, float r) {
-  float v[16], open[16], y[16];
-  vec3 u[16], uo[16];
-  aobakeLayer(v);
-  aobakeBasis(n, y);
-  const float lambda[4] = float[4](6.28318531, 3.14159265, 0.0, -0.78539816);
-  for (int i = 0; i < 16; i++) open[i] = lambda[AOBAKE_BAND[i]] * y[i];
-  aobakeVisibleRadiance(v, u);
-  aobakeVisibleRadiance(open, uo);
-  aobakeBasis(R, y);
-  float a = max(r * r, 1e-3), s = max(2.0 / (a * a) - 2.0, 1e-3);
-  vec3 seen = vec3(0.0), unoccluded = vec3(0.0);
-  for (int k = 0; k < 16; k++) {
-    float l = float(AOBAKE_BAND[k]);
-    float w = exp(-l * l / (2.0 * s)) * y[k];
-    seen += w * u[k];
-    unoccluded += w * uo[k];
-  }
-  const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
-  float o = dot(unoccluded, lum);
-  return o > 1e-6 ? clamp(dot(seen, lum) / o, 0.0, 1.0) : 1.0;
-}
+${VISIBILITY_GLSL}
 #else
 // Without the layer: the cone of the AO around the bent normal from c
 // (Jimenez et al. 2016): a visibility cone of cos = sqrt(1 - AO) and the

@@ -1,18 +1,19 @@
-// The viewer page: opens a baked GLB (URL, file picker or drop; nothing is
-// uploaded), lights it with an SH environment through a LightProbe and the
-// AOBAKE_lightmap plugin, and exposes `window.aobakeViewer` for tests.
+// The viewer page in three.js: opens a baked GLB (URL, file picker or drop;
+// nothing is uploaded), lights it with an SH environment through a
+// LightProbe and the AOBAKE_lightmap plugin, and exposes
+// `window.aobakeViewer` for tests and the side-by-side page. The bar and
+// its state are bar.js's (shared with the Babylon.js page).
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { AobakeLightmapPlugin, AobakeLightmaps } from './aobake-lightmap.js';
-import { BUILT_IN, equirect, project } from './environments.js';
+import {
+  describe, environment, initialModel, say, state, status as barStatus, viewEvents, wireBar,
+} from './bar.js';
 
 const canvas = document.getElementById('view');
 const stage = document.getElementById('stage');
-const messageBox = document.getElementById('message');
-const envSelect = document.getElementById('env');
-const rotationInput = document.getElementById('rotation');
 
 const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
 renderer.setPixelRatio(1);
@@ -24,15 +25,8 @@ const controls = new OrbitControls(camera, canvas);
 const probe = new THREE.LightProbe();
 scene.add(probe);
 const lightmaps = new AobakeLightmaps();
-
-const state = {
-  env: 'sky', rotation: 0, mode: 'sh', normalMaps: true, image: null, model: null, name: '',
-};
-
-function say(text, level = 'info') {
-  messageBox.textContent = text;
-  messageBox.className = level;
-}
+const views = viewEvents();
+let model = null;
 
 function resize() {
   const w = stage.clientWidth;
@@ -46,19 +40,10 @@ function render() {
   renderer.render(scene, camera);
 }
 
-/** The environment's SH (9 x RGB) for the current choice and rotation. */
-function environmentSH() {
-  const radiance = state.env === 'image' && state.image
-    ? state.image
-    : (BUILT_IN[state.env] ?? BUILT_IN.sky).radiance;
-  return project(radiance, (state.rotation * Math.PI) / 180);
-}
-
 function applyEnvironment() {
-  const coeffs = environmentSH();
-  for (let i = 0; i < 9; i++) probe.sh.coefficients[i].fromArray(coeffs[i]);
+  const { coefficients } = environment();
+  for (let i = 0; i < 9; i++) probe.sh.coefficients[i].fromArray(coefficients[i]);
   lightmaps.setEnvironment(probe.sh);
-  state.coefficients = coeffs;
   render();
 }
 
@@ -76,24 +61,7 @@ function frame(object) {
   camera.far = size * 100;
   camera.position.copy(centre).add(new THREE.Vector3(0, size * 0.05, size * 0.9));
   camera.updateProjectionMatrix();
-  controls.update();
-}
-
-function describe() {
-  const n = lightmaps.baked.length;
-  const problems = lightmaps.problems;
-  const name = state.name || 'the file';
-  if (problems.length > 0) {
-    const shown = problems.slice(0, 5).join('\n');
-    const more = problems.length > 5 ? `\n(${problems.length - 5} more)` : '';
-    return [`${name}: AOBAKE_lightmap is malformed, these primitives render without the bake:\n${shown}${more}`, 'error'];
-  }
-  if (n === 0) {
-    return [`${name} has no AOBAKE_lightmap: shown with the environment's light only (bake it with aobake first).`, 'warn'];
-  }
-  const r = lightmaps.record;
-  const how = r ? ` (${r.method}, ${r.rays} rays, ${r.resolution?.join('x')} atlas)` : '';
-  return [`${name}: ${n} baked primitive${n === 1 ? '' : 's'}${how}.`, 'info'];
+  views.set([camera.position.toArray(), controls.target.toArray()], () => controls.update());
 }
 
 /** Loads a GLB from an ArrayBuffer or a URL; resolves to the status. */
@@ -111,28 +79,20 @@ async function load(source, name) {
     render();
     return status();
   }
-  if (state.model) scene.remove(state.model);
-  state.model = gltf.scene;
+  if (model) scene.remove(model);
+  model = gltf.scene;
   state.name = name;
   scene.add(gltf.scene);
   frame(gltf.scene);
   if (!state.normalMaps) lightmaps.setNormalMaps(false);
   applyEnvironment();
   applyMode();
-  say(...describe());
+  say(...describe(lightmaps));
   render();
   return status();
 }
 
-function status() {
-  return {
-    message: messageBox.textContent,
-    level: messageBox.className,
-    baked: lightmaps.baked.length,
-    problems: lightmaps.problems.slice(),
-    coefficients: state.coefficients,
-  };
-}
+const status = () => barStatus(lightmaps);
 
 /**
  * Renders one frame with a debug output into a float target (raw shader
@@ -174,71 +134,19 @@ function probePixels(debug, pixels) {
   });
 }
 
-// UI.
-for (const [key, env] of Object.entries(BUILT_IN)) {
-  const option = document.createElement('option');
-  option.value = key;
-  option.textContent = env.label;
-  envSelect.append(option);
-}
-const imageOption = document.createElement('option');
-imageOption.value = 'image';
-imageOption.textContent = 'image (choose one)';
-envSelect.append(imageOption);
-envSelect.value = state.env;
-envSelect.addEventListener('change', () => {
-  state.env = envSelect.value;
-  applyEnvironment();
-});
-rotationInput.addEventListener('input', () => {
-  state.rotation = Number(rotationInput.value);
-  document.getElementById('rotationValue').textContent = `${state.rotation}°`;
-  applyEnvironment();
-});
-for (const radio of document.querySelectorAll('input[name=mode]')) {
-  radio.addEventListener('change', () => {
-    state.mode = radio.value;
-    applyMode();
-  });
-}
-document.getElementById('normalmaps').addEventListener('change', (e) => {
-  state.normalMaps = e.target.checked;
-  lightmaps.setNormalMaps(state.normalMaps);
+const calls = wireBar({
+  load,
+  environment: applyEnvironment,
+  mode: applyMode,
+  normalMaps: () => {
+    lightmaps.setNormalMaps(state.normalMaps);
+    render();
+  },
+}, stage);
+controls.addEventListener('change', () => {
   render();
+  views.emit([camera.position.toArray(), controls.target.toArray()]);
 });
-document.getElementById('file').addEventListener('change', async (e) => {
-  const file = e.target.files[0];
-  if (file) await load(await file.arrayBuffer(), file.name);
-});
-document.getElementById('envimage').addEventListener('change', async (e) => {
-  const file = e.target.files[0];
-  if (!file) return;
-  try {
-    const bitmap = await createImageBitmap(file, { colorSpaceConversion: 'none' });
-    const c = new OffscreenCanvas(bitmap.width, bitmap.height);
-    const ctx = c.getContext('2d');
-    ctx.drawImage(bitmap, 0, 0);
-    const pixels = ctx.getImageData(0, 0, bitmap.width, bitmap.height).data;
-    state.image = equirect(pixels, bitmap.width, bitmap.height);
-    state.env = 'image';
-    envSelect.value = 'image';
-    applyEnvironment();
-  } catch (err) {
-    say(`${file.name} is not an image this browser decodes: ${err.message ?? err}`, 'error');
-  }
-});
-stage.addEventListener('dragover', (e) => {
-  e.preventDefault();
-  stage.classList.add('dragging');
-});
-stage.addEventListener('dragleave', () => stage.classList.remove('dragging'));
-stage.addEventListener('drop', async (e) => {
-  e.preventDefault();
-  stage.classList.remove('dragging');
-  const file = e.dataTransfer.files[0];
-  if (file) await load(await file.arrayBuffer(), file.name);
-});
-controls.addEventListener('change', render);
 window.addEventListener('resize', () => {
   resize();
   render();
@@ -248,46 +156,32 @@ resize();
 applyEnvironment();
 applyMode();
 
-const params = new URLSearchParams(location.search);
-const initial = params.get('model');
-const ready = initial ? load(initial, initial.split('/').pop()) : Promise.resolve(status());
+const ready = initialModel ? load(initialModel, initialModel.split('/').pop()) : Promise.resolve(status());
 
-/** For tests and scripts. */
+/** For tests, scripts and the side-by-side page (the same calls as the
+ * Babylon.js page's). */
 window.aobakeViewer = {
+  engine: 'three',
   ready,
   load: (url) => load(url, url.split('/').pop()),
-  loadBytes: (bytes, name) => load(new Uint8Array(bytes).buffer, name),
-  setEnvironment(name, rotationDegrees = 0) {
-    state.env = name;
-    state.rotation = rotationDegrees;
-    envSelect.value = name;
-    rotationInput.value = String(rotationDegrees);
-    applyEnvironment();
-    return state.coefficients;
-  },
-  setMode(mode) {
-    state.mode = mode;
-    document.querySelector(`input[name=mode][value=${mode}]`).checked = true;
-    applyMode();
-  },
-  setNormalMaps(on) {
-    state.normalMaps = on;
-    document.getElementById('normalmaps').checked = on;
-    lightmaps.setNormalMaps(on);
-    render();
-  },
+  ...calls,
   setDebug(name) {
     lightmaps.setDebug(name);
     render();
   },
   /** Per baked primitive: whether it has the visibility layer. */
   layers: () => lightmaps.baked.map((b) => b.extension.visibility !== undefined),
+  /** The camera at `position` looking at `target`, in the file's frame. */
   view(position, target) {
     camera.position.fromArray(position);
     controls.target.fromArray(target);
-    controls.update();
+    views.set([position, target], () => controls.update());
     render();
   },
+  /** [position, target] of the camera, in the file's frame. */
+  currentView: () => [camera.position.toArray(), controls.target.toArray()],
+  /** Called with [position, target] when the user moves the camera. */
+  onView: views.on,
   probe: probePixels,
   status,
   size: () => [canvas.width, canvas.height],

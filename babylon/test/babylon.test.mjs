@@ -17,7 +17,9 @@ import { readFileSync, writeFileSync, existsSync } from 'node:fs';
 import { basename, extname, join, normalize } from 'node:path';
 import { build } from 'esbuild';
 import { bake, launch, repoDir, sharedAssets, tempDir, tiltedPlane } from '../../viewer/test/harness.mjs';
-import { coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage, writeGlb } from '../../viewer/test/decode.mjs';
+import {
+  anchoredAgreement, coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage, writeGlb,
+} from '../../viewer/test/decode.mjs';
 
 const dir = tempDir();
 const files = {};
@@ -95,6 +97,10 @@ before(async () => {
   if (existsSync(join(sharedAssets, 'sponza_dabrovic.glb'))) {
     files.sponzaPages = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza_pages.glb'),
       ['--texel-density', '5', '--page-size', '256', '--rays', '16', '--method', 'mc']);
+  }
+  if (existsSync(join(sharedAssets, 'flight_helmet.glb'))) {
+    // Every material of the helmet has a normal map: `auto` bakes the layer.
+    files.helmet = bake(join(sharedAssets, 'flight_helmet.glb'), join(dir, 'helmet.glb'), ['--resolution', '512', '--quality', '32']);
   }
   // The page and Babylon as one module (thousands of ES modules load too slowly).
   await build({
@@ -268,4 +274,48 @@ test('Sponza on several atlas pages: each primitive reads its own page', async (
   const root = decoded(files.sponzaPages).glb.json.extensions.AOBAKE_lightmap;
   assert.ok(root.pages.length >= 3);
   await relightMatches('sponzaPages', ['white', 'lobe+y']);
+});
+
+test('flight helmet: normal maps drive the baked light as the CPU formula says', async (t) => {
+  if (!files.helmet) {
+    t.skip('shared assets missing');
+    return;
+  }
+  const page = await openPage();
+  const status = await page.evaluate((u) => window.aobakeBabylon.load(u), `/files/${basename(files.helmet)}`);
+  assert.deepEqual(status.problems, []);
+  const layers = await page.evaluate(() => window.aobakeBabylon.layers());
+  assert.ok(layers.length > 0 && layers.every((x) => x), `layers ${layers}`);
+  const { glb, exts } = decoded(files.helmet);
+  const ext = exts.find((e) => e.visibility);
+  assert.equal(ext.visibility.length, 4);
+  const images = [ext.occlusion, ...ext.sh].map((r) => textureImage(glb, r.index));
+  const vImages = ext.visibility.map((r) => textureImage(glb, r.index));
+  await page.evaluate(() => window.aobakeBabylon.lookAt([0.25, 0.35, 0.45], [0, 0.3, 0]));
+  const size = await page.evaluate(() => window.aobakeBabylon.size());
+  const pixels = grid(size, 12);
+  const L = (await page.evaluate((n) => window.aobakeBabylon.setEnvironment(n), 'lobe+x')).map((l) => l[0]);
+  const probe = (d) => page.evaluate(([dd, p]) => window.aobakeBabylon.probe(dd, p), [d, pixels]);
+  const probes = {};
+  for (const d of ['uv', 'mapped', 'irradiance', 'shadingNormal', 'vertexNormal']) probes[d] = await probe(d);
+  const { n, worst, moved, scale } = anchoredAgreement(probes, images, vImages, ext, L);
+  assert.ok(n > 300, `${n} probe pixels on the helmet`);
+  const tol = 2e-3 * scale;
+  console.log(`# helmet lobe+x: ${n} pixels, max |GPU - CPU normal-mapped| = ${worst.toFixed(5)} (tolerance ${tol.toFixed(5)}); ${moved} moved by the normal map`);
+  assert.ok(worst <= tol, `max difference ${worst} > ${tol}`);
+  assert.ok(moved > n / 10, `the normal maps move only ${moved} of ${n} pixels`);
+  // Normal maps off: n' = n, and the formula gives c.L exactly.
+  await page.evaluate(() => window.aobakeBabylon.setNormalMaps(false));
+  const off = await probe('mapped');
+  const offPlain = await probe('irradiance');
+  let worstOff = 0;
+  for (let k = 0; k < pixels.length; k++) {
+    if (off[k][3] !== 1) continue;
+    worstOff = Math.max(worstOff, Math.abs(off[k][0] - offPlain[k][0]));
+  }
+  console.log(`# helmet, normal maps off: max |mapped - c.L| = ${worstOff.toExponential(2)}`);
+  assert.ok(worstOff < 1e-4 * scale + 1e-6, `${worstOff}`);
+  await page.evaluate(() => window.aobakeBabylon.setNormalMaps(true));
+  assert.deepEqual(page.errors, []);
+  await page.close();
 });

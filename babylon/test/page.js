@@ -11,7 +11,6 @@ import { ArcRotateCamera } from '@babylonjs/core/Cameras/arcRotateCamera.js';
 import { Vector3 } from '@babylonjs/core/Maths/math.vector.js';
 import { Color4 } from '@babylonjs/core/Maths/math.color.js';
 import { RawCubeTexture } from '@babylonjs/core/Materials/Textures/rawCubeTexture.js';
-import { RenderTargetTexture } from '@babylonjs/core/Materials/Textures/renderTargetTexture.js';
 import { CubeMapToSphericalPolynomialTools } from '@babylonjs/core/Misc/HighDynamicRange/cubemapToSphericalPolynomial.js';
 import { SceneLoader } from '@babylonjs/core/Loading/sceneLoader.js';
 import { Constants } from '@babylonjs/core/Engines/constants.js';
@@ -86,6 +85,17 @@ window.aobakeBabylon = {
     return lightmaps.setEnvironmentFromScene(scene);
   },
   toScene: () => lightmaps.toScene,
+  /** Per baked primitive: whether it has the visibility layer. */
+  layers: () => lightmaps.baked.map((b) => b.extension.visibility !== undefined),
+  setNormalMaps: (on) => lightmaps.setNormalMaps(on),
+  /** The camera at `position` looking at `target`, both in the file's
+   * (glTF) frame, taken through the loader's root. */
+  lookAt(position, target) {
+    const m = lightmaps.toScene;
+    const map = (p) => new Vector3(...[0, 1, 2].map((r) => m[3 * r] * p[0] + m[3 * r + 1] * p[1] + m[3 * r + 2] * p[2]));
+    camera.setPosition(map(position));
+    camera.setTarget(map(target));
+  },
   setMode: (m) => lightmaps.setMode(m),
   /** Camera angles, and optionally its distance as a share of the view's. */
   view(alpha, beta, radius) {
@@ -96,33 +106,8 @@ window.aobakeBabylon = {
   size: () => [engine.getRenderWidth(), engine.getRenderHeight()],
   /** [r, g, b, a] at each pixel [x, y] (from the top left) of a float
    * render of the baked meshes with debug output `debug`; a = 0 off them. */
-  async probe(debug, pixels) {
-    const [w, h] = this.size();
-    const rtt = new RenderTargetTexture('probe', { width: w, height: h }, scene, {
-      generateMipMaps: false, type: Constants.TEXTURETYPE_FLOAT,
-    });
-    rtt.renderList = lightmaps.baked.map((b) => b.mesh);
-    rtt.activeCamera = camera;
-    rtt.clearColor = new Color4(0, 0, 0, 0);
-    lightmaps.setLevel0(true);
-    lightmaps.setDebug(debug);
-    await new Promise((ok) => scene.executeWhenReady(ok));
-    let tries = 0;
-    while (!rtt.isReadyForRendering() && tries++ < 200) await new Promise((r) => setTimeout(r, 20));
-    for (let k = 0; k < 3; k++) {
-      rtt.render();
-      if (rtt.renderList.every((m) => m.material.isReady(m))) break;
-      await new Promise((r) => setTimeout(r, 50));
-    }
-    rtt.render();
-    const data = await rtt.readPixels();
-    lightmaps.setDebug('none');
-    lightmaps.setLevel0(false);
-    rtt.dispose();
-    return pixels.map(([x, y]) => {
-      const o = ((h - 1 - y) * w + x) * 4;
-      return [data[o], data[o + 1], data[o + 2], data[o + 3]];
-    });
+  probe(debug, pixels) {
+    return lightmaps.probe(scene, camera, debug, pixels, this.size());
   },
   /** The canvas as rendered (8-bit), for screenshots. */
   async render() {

@@ -2,7 +2,10 @@
 //! serves a working page from any directory: the page (`viewer/`) and the
 //! three.js modules it imports (`viewer/vendor/three/`, the files of the
 //! npm package `three` pinned in `viewer/package.json`, MIT licensed; a
-//! test checks they equal the installed package's).
+//! test checks they equal the installed package's), and Babylon.js with
+//! its importer as one gzip-compressed module (`viewer/vendor/babylon/`,
+//! Apache-2.0, built by `babylon/build-viewer.mjs`; a test checks it is
+//! what the checkout builds).
 //!
 //! In: a request path relative to the viewer's root. Out: the file's
 //! bytes, if built in.
@@ -19,6 +22,17 @@ pub const FILES: &[(&str, &[u8])] = &[
         "aobake-extension.js",
         include_bytes!("../../viewer/aobake-extension.js"),
     ),
+    ("aobake-sh.js", include_bytes!("../../viewer/aobake-sh.js")),
+    (
+        "aobake-glsl.js",
+        include_bytes!("../../viewer/aobake-glsl.js"),
+    ),
+    ("bar.js", include_bytes!("../../viewer/bar.js")),
+    (
+        "babylon-viewer.js",
+        include_bytes!("../../viewer/babylon-viewer.js"),
+    ),
+    ("compare.js", include_bytes!("../../viewer/compare.js")),
     (
         "environments.js",
         include_bytes!("../../viewer/environments.js"),
@@ -50,6 +64,14 @@ pub const FILES: &[(&str, &[u8])] = &[
     (
         "vendor/three/examples/jsm/utils/SkeletonUtils.js",
         include_bytes!("../../viewer/vendor/three/examples/jsm/utils/SkeletonUtils.js"),
+    ),
+    (
+        "vendor/babylon/LICENSE",
+        include_bytes!("../../viewer/vendor/babylon/LICENSE"),
+    ),
+    (
+        "vendor/babylon/aobake-babylon.js.gz",
+        include_bytes!("../../viewer/vendor/babylon/aobake-babylon.js.gz"),
     ),
 ];
 

@@ -82,15 +82,29 @@ impl ViewSite {
         if !clean {
             return None;
         }
-        match &self.root {
-            Some(root) => Some(root.join(rel))
-                .filter(|p| p.is_file())
-                .map(Served::File),
-            None => embedded::FILES
-                .iter()
-                .find(|(p, _)| *p == rel)
-                .map(|&(p, b)| Served::Embedded(p, b)),
-        }
+        // A large module is kept gzip-compressed (`x.js.gz`) and served as
+        // `x.js` with that encoding.
+        let gzipped = format!("{rel}.gz");
+        [rel, gzipped.as_str()]
+            .into_iter()
+            .find_map(|rel| match &self.root {
+                Some(root) => Some(root.join(rel))
+                    .filter(|p| p.is_file())
+                    .map(Served::File),
+                None => embedded::FILES
+                    .iter()
+                    .find(|(p, _)| *p == rel)
+                    .map(|&(p, b)| Served::Embedded(p, b)),
+            })
+    }
+}
+
+/// The content type and encoding of a served file: `x.js.gz` is `x.js`
+/// gzip-encoded.
+fn kind_of(path: &Path) -> (&'static str, Option<&'static str>) {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("gz") => (content_type(&path.with_extension("")), Some("gzip")),
+        _ => (content_type(path), None),
     }
 }
 
@@ -139,27 +153,33 @@ fn answer(mut stream: TcpStream, site: &ViewSite) -> std::io::Result<()> {
     }
     let mut parts = request.split_whitespace();
     let (method, path) = (parts.next().unwrap_or(""), parts.next().unwrap_or(""));
-    let (status, kind, body) = if method != "GET" && method != "HEAD" {
+    let not_found = (
+        "404 Not Found",
+        ("text/plain", None),
+        b"not found\n".to_vec(),
+    );
+    let (status, (kind, encoding), body) = if method != "GET" && method != "HEAD" {
         (
             "405 Method Not Allowed",
-            "text/plain",
+            ("text/plain", None),
             b"GET only\n".to_vec(),
         )
     } else {
         match site.resolve(path) {
             Some(Served::File(p)) => match std::fs::read(&p) {
-                Ok(bytes) => ("200 OK", content_type(&p), bytes),
-                Err(_) => ("404 Not Found", "text/plain", b"not found\n".to_vec()),
+                Ok(bytes) => ("200 OK", kind_of(&p), bytes),
+                Err(_) => not_found,
             },
-            Some(Served::Embedded(p, bytes)) => {
-                ("200 OK", content_type(Path::new(p)), bytes.to_vec())
-            }
-            None => ("404 Not Found", "text/plain", b"not found\n".to_vec()),
+            Some(Served::Embedded(p, bytes)) => ("200 OK", kind_of(Path::new(p)), bytes.to_vec()),
+            None => not_found,
         }
     };
+    let encoding = encoding
+        .map(|e| format!("Content-Encoding: {e}\r\n"))
+        .unwrap_or_default();
     write!(
         stream,
-        "HTTP/1.1 {status}\r\nContent-Type: {kind}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n",
+        "HTTP/1.1 {status}\r\nContent-Type: {kind}\r\n{encoding}Content-Length: {}\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n",
         body.len()
     )?;
     if method != "HEAD" {
@@ -189,6 +209,13 @@ mod tests {
         assert_eq!(site.resolve("/"), file("./index.html"));
         assert_eq!(site.resolve("/?model=/model.glb"), file("./index.html"));
         assert_eq!(site.resolve("/sub/a.js"), file("./sub/a.js"));
+        std::fs::write(dir.path().join("sub/big.js.gz"), "gz").unwrap();
+        assert_eq!(site.resolve("/sub/big.js"), file("./sub/big.js.gz"));
+        assert_eq!(
+            kind_of(Path::new("sub/big.js.gz")),
+            ("text/javascript; charset=utf-8", Some("gzip"))
+        );
+        assert_eq!(kind_of(Path::new("a.glb")), ("model/gltf-binary", None));
         assert_eq!(site.resolve("/model.glb"), Some(Served::File(model)));
         for refused in [
             "/../etc/passwd",
@@ -208,7 +235,12 @@ mod tests {
             root: None,
             model: None,
         };
-        for path in ["/", "/viewer.js", "/vendor/three/build/three.core.js"] {
+        for path in [
+            "/",
+            "/viewer.js",
+            "/vendor/three/build/three.core.js",
+            "/vendor/babylon/aobake-babylon.js",
+        ] {
             assert!(
                 matches!(built_in.resolve(path), Some(Served::Embedded(..))),
                 "{path}"
@@ -236,6 +268,7 @@ mod tests {
                     && (part.ends_with(".js") || part.ends_with('/'))
                     && (before.trim_end().ends_with("from")
                         || before.trim_end().ends_with("import")
+                        || before.trim_end().ends_with("import(")
                         || before.trim_end().ends_with(':')
                         || before.trim_end().ends_with("src="));
                 if !imported {
@@ -259,6 +292,7 @@ mod tests {
                     embedded::FILES.iter().any(|(p, _)| p.starts_with(&joined))
                 } else {
                     embedded::file(&joined).is_some()
+                        || embedded::file(&format!("{joined}.gz")).is_some()
                 };
                 if !known {
                     missing.push(format!("{path}: {part}"));

@@ -8,6 +8,7 @@
 import { after, before, test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync } from 'node:fs';
+import { gunzipSync } from 'node:zlib';
 import { join } from 'node:path';
 import { bake, launch, open, repoDir, serve, tempDir, viewerDir } from './harness.mjs';
 
@@ -44,7 +45,7 @@ test('the built-in page loads the model, relights it and draws', async () => {
 
 test('the built-in files are this checkout\'s, and nothing else is served', async () => {
   const base = new URL(server.url).origin;
-  for (const f of ['viewer.js', 'aobake-lightmap.js', 'vendor/three/build/three.module.js']) {
+  for (const f of ['viewer.js', 'aobake-lightmap.js', 'bar.js', 'babylon-viewer.js', 'compare.js', 'aobake-sh.js', 'vendor/three/build/three.module.js']) {
     const got = Buffer.from(await (await fetch(`${base}/${f}`)).arrayBuffer());
     assert.ok(got.equals(readFileSync(join(viewerDir, f))), `${f} differs from viewer/${f}`);
   }

@@ -194,3 +194,34 @@ export function anchoredDiffuse(c, v, L, n, nPrime) {
   const cl = c.reduce((s, ci, i) => s + ci * L[i], 0);
   return cl + at(nPrime) - at(n);
 }
+
+/**
+ * The shader's normal-mapped diffuse against anchoredDiffuse at probe
+ * pixels (one colour channel). `probes` holds per-pixel debug outputs:
+ * uv, mapped, irradiance (c.L), shadingNormal and vertexNormal (normals as
+ * 0.5 + 0.5 n). Returns the pixels compared, the largest difference, how
+ * many the normal maps moved by more than 1% of the largest |L_i|, and
+ * that scale.
+ */
+export function anchoredAgreement(probes, images, vImages, ext, L) {
+  const { uv, mapped, irradiance, shadingNormal, vertexNormal } = probes;
+  const unit = (p) => {
+    const v = [2 * p[0] - 1, 2 * p[1] - 1, 2 * p[2] - 1];
+    const len = Math.hypot(...v);
+    return v.map((x) => x / len);
+  };
+  const scale = Math.max(...L.map(Math.abs));
+  let n = 0;
+  let worst = 0;
+  let moved = 0;
+  for (let k = 0; k < uv.length; k++) {
+    if ([uv, mapped, shadingNormal, vertexNormal].some((r) => r[k][3] !== 1)) continue;
+    const c = coefficientsAt(images, ext, uv[k][0], uv[k][1]);
+    const v = visibilityAt(vImages, ext, uv[k][0], uv[k][1]);
+    const expected = anchoredDiffuse(c, v, L, unit(vertexNormal[k]), unit(shadingNormal[k]));
+    worst = Math.max(worst, Math.abs(mapped[k][0] - expected));
+    if (Math.abs(mapped[k][0] - irradiance[k][0]) > 0.01 * scale) moved++;
+    n++;
+  }
+  return { n, worst, moved, scale };
+}

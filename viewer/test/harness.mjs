@@ -74,7 +74,10 @@ export async function open(browser, url, viewport = { width: 800, height: 600 })
   const page = await browser.newPage({ viewport });
   page.errors = [];
   page.on('pageerror', (e) => page.errors.push(e.message));
+  page.on('console', (m) => { if (m.type() === 'error') page.errors.push(m.text()); });
   await page.goto(url);
+  // index.html imports the engine's page module dynamically.
+  await page.waitForFunction(() => window.aobakeViewer !== undefined, null, { timeout: 120000 });
   await page.evaluate(() => window.aobakeViewer.ready);
   return page;
 }

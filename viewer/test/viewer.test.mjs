@@ -11,8 +11,8 @@ import { readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { bake, launch, open, pick, repoDir, serve, sharedAssets, tempDir, tiltedPlane } from './harness.mjs';
 import {
-  anchoredDiffuse, basis, coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage,
-  visibilityAt, writeGlb,
+  anchoredAgreement, basis, coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage,
+  writeGlb,
 } from './decode.mjs';
 
 const dir = tempDir();
@@ -346,29 +346,9 @@ describe('the visibility layer: normal maps drive the baked light', () => {
     await page.evaluate(() => window.aobakeViewer.view([0.25, 0.35, 0.45], [0, 0.3, 0]));
     const pixels = await grid(page, 12);
     const L = await page.evaluate(() => window.aobakeViewer.setEnvironment('lobe+x'));
-    const uv = await probe(page, 'uv', pixels);
-    const mapped = await probe(page, 'mapped', pixels);
-    const plain = await probe(page, 'irradiance', pixels);
-    const shading = await probe(page, 'shadingNormal', pixels);
-    const vertex = await probe(page, 'vertexNormal', pixels);
-    const unit = (p) => {
-      const v = [2 * p[0] - 1, 2 * p[1] - 1, 2 * p[2] - 1];
-      const len = Math.hypot(...v);
-      return v.map((x) => x / len);
-    };
-    let n = 0;
-    let worst = 0;
-    let moved = 0;
-    const scale = Math.max(...L.map((l) => Math.abs(l[0])));
-    for (let k = 0; k < pixels.length; k++) {
-      if ([uv, mapped, shading, vertex].some((r) => r[k][3] !== 1)) continue;
-      const c = coefficientsAt(images, ext, uv[k][0], uv[k][1]);
-      const v = visibilityAt(vImages, ext, uv[k][0], uv[k][1]);
-      const expected = anchoredDiffuse(c, v, L.map((l) => l[0]), unit(vertex[k]), unit(shading[k]));
-      worst = Math.max(worst, Math.abs(mapped[k][0] - expected));
-      if (Math.abs(mapped[k][0] - plain[k][0]) > 0.01 * scale) moved++;
-      n++;
-    }
+    const probes = {};
+    for (const d of ['uv', 'mapped', 'irradiance', 'shadingNormal', 'vertexNormal']) probes[d] = await probe(page, d, pixels);
+    const { n, worst, moved, scale } = anchoredAgreement(probes, images, vImages, ext, L.map((l) => l[0]));
     assert.ok(n > 300, `${n} probe pixels on the helmet`);
     const tol = 2e-3 * scale;
     console.log(`# helmet lobe+x: ${n} pixels, max |GPU - CPU normal-mapped| = ${worst.toFixed(5)} (tolerance ${tol.toFixed(5)}); ${moved} moved by the normal map`);

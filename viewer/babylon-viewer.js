@@ -1,0 +1,204 @@
+// The viewer page in Babylon.js (index.html?engine=babylon): the same bar,
+// environments and `window.aobakeViewer` calls as the three.js page
+// (viewer.js), with babylon/aobake-lightmap.js as the importer. Babylon.js
+// and the importer come as one bundle (vendor/babylon/aobake-babylon.js,
+// built by babylon/build-viewer.mjs).
+//
+// The baked light uses the environment's SH exactly as the three.js page
+// does (environments.js's projection, in the file's frame); the scene's
+// own environment (unbaked surfaces, specular) is a 32-pixel float cube
+// of the same radiance taken through the loader's root (a mirror).
+
+import {
+  AobakeLightmaps, ArcRotateCamera, Color4, Constants, CubeMapToSphericalPolynomialTools, Engine,
+  RawCubeTexture, Scene, SceneLoader, Vector3, registerAobakeLightmap, toBakeRows,
+} from './vendor/babylon/aobake-babylon.js';
+import {
+  describe, environment, initialModel, say, state, status as barStatus, viewEvents, wireBar,
+} from './bar.js';
+
+const canvas = document.getElementById('view');
+const stage = document.getElementById('stage');
+SceneLoader.ShowLoadingScreen = false;
+const engine = new Engine(canvas, true, { preserveDrawingBuffer: true, stencil: false });
+const scene = new Scene(engine);
+scene.clearColor = new Color4(0x30 / 255, 0x31 / 255, 0x34 / 255, 1);
+scene.imageProcessingConfiguration.toneMappingEnabled = false;
+const camera = new ArcRotateCamera('camera', -Math.PI / 2, Math.PI / 2.5, 3, Vector3.Zero(), scene);
+camera.fov = (45 * Math.PI) / 180;
+camera.attachControl(canvas, true);
+camera.wheelDeltaPercentage = 0.01;
+const lightmaps = new AobakeLightmaps();
+registerAobakeLightmap(lightmaps);
+const views = viewEvents();
+let cube = null;
+
+/** Row-major 3x3 times a vector. */
+const apply = (m, p) => [0, 1, 2].map((r) => m[3 * r] * p[0] + m[3 * r + 1] * p[1] + m[3 * r + 2] * p[2]);
+/** The file's frame to Babylon's world and back (points and directions). */
+const toScene = (p) => new Vector3(...apply(lightmaps.toScene, p));
+const toFile = (v) => toBakeRows(lightmaps.toScene).direction.map((row) => row[0] * v.x + row[1] * v.y + row[2] * v.z);
+
+/** Cube faces in GL order: +X, -X, +Y, -Y, +Z, -Z (normal, s, t axes). */
+const FACES = [
+  ['right', [1, 0, 0], [0, 0, -1], [0, -1, 0]], ['left', [-1, 0, 0], [0, 0, 1], [0, -1, 0]],
+  ['up', [0, 1, 0], [1, 0, 0], [0, 0, 1]], ['down', [0, -1, 0], [1, 0, 0], [0, 0, -1]],
+  ['front', [0, 0, 1], [1, 0, 0], [0, -1, 0]], ['back', [0, 0, -1], [-1, 0, 0], [0, -1, 0]],
+];
+
+/** The scene's environment cube of `radiance` (a function of the file's
+ * frame), with the spherical polynomial Babylon's own tool makes of it. */
+function environmentCube(radiance, size = 32) {
+  const info = { size, format: Constants.TEXTUREFORMAT_RGBA, type: Constants.TEXTURETYPE_FLOAT, gammaSpace: false };
+  const faces = [];
+  for (const [name, n, fs, ft] of FACES) {
+    const data = new Float32Array(size * size * 4);
+    for (let y = 0; y < size; y++) {
+      for (let x = 0; x < size; x++) {
+        const s = ((x + 0.5) / size) * 2 - 1;
+        const t = ((y + 0.5) / size) * 2 - 1;
+        const d = [0, 1, 2].map((k) => n[k] + s * fs[k] + t * ft[k]);
+        const w = toFile({ x: d[0], y: d[1], z: d[2] });
+        const len = Math.hypot(...w);
+        const c = radiance(w[0] / len, w[1] / len, w[2] / len);
+        data.set([c[0], c[1], c[2], 1], (y * size + x) * 4);
+      }
+    }
+    info[name] = data;
+    faces.push(data);
+  }
+  const texture = new RawCubeTexture(scene, faces, size, Constants.TEXTUREFORMAT_RGBA, Constants.TEXTURETYPE_FLOAT, true);
+  texture.sphericalPolynomial = CubeMapToSphericalPolynomialTools.ConvertCubeMapToSphericalPolynomial(info);
+  return texture;
+}
+
+function resize() {
+  engine.resize();
+}
+
+let dirty = true;
+/** Asks for a frame: drawn by the loop, only when something changed (a
+ * software renderer keeps up with two pages side by side this way). */
+function render() {
+  dirty = true;
+}
+
+/** Whether the camera is still moving (inertia, or input not yet applied). */
+const moving = () => camera.inertialAlphaOffset !== 0 || camera.inertialBetaOffset !== 0
+  || camera.inertialRadiusOffset !== 0 || camera.inertialPanningX !== 0 || camera.inertialPanningY !== 0;
+
+function applyEnvironment() {
+  const { radiance, coefficients } = environment();
+  const next = environmentCube(radiance);
+  scene.environmentTexture = next;
+  cube?.dispose();
+  cube = next;
+  lightmaps.setEnvironment(coefficients);
+  render();
+}
+
+function applyMode() {
+  lightmaps.setMode(state.mode);
+  render();
+}
+
+/** The three.js page's first view: from the front, a little above. */
+function frame() {
+  const { min, max } = scene.getWorldExtends((m) => m.isVisible && m.getTotalVertices() > 0);
+  const size = max.subtract(min).length() || 1;
+  const centre = toFile(min.add(max).scale(0.5));
+  camera.minZ = size / 1000;
+  camera.maxZ = size * 100;
+  view([centre[0], centre[1] + size * 0.05, centre[2] + size * 0.9], centre);
+}
+
+function view(position, target) {
+  views.set([position, target], () => {
+    camera.setTarget(toScene(target));
+    camera.setPosition(toScene(position));
+  });
+  render();
+}
+
+async function load(source, name) {
+  say(`loading ${name} ...`);
+  for (const m of [...scene.meshes]) m.dispose(false, true);
+  try {
+    if (typeof source === 'string') await SceneLoader.AppendAsync(source, undefined, scene, undefined, '.glb');
+    else await SceneLoader.AppendAsync('', new Uint8Array(source), scene, undefined, '.glb');
+  } catch (e) {
+    say(`${name} does not load: ${e.message ?? e}`, 'error');
+    render();
+    return status();
+  }
+  state.name = name;
+  frame();
+  if (!state.normalMaps) lightmaps.setNormalMaps(false);
+  applyEnvironment();
+  applyMode();
+  await new Promise((ok) => scene.executeWhenReady(ok));
+  say(...describe(lightmaps));
+  render();
+  return status();
+}
+
+const status = () => barStatus(lightmaps);
+
+/** [r, g, b, a] of a float render of the baked meshes with debug output
+ * `debug` at each pixel [x, y]; a = 0 off them (the importer's probe). */
+async function probePixels(debug, pixels) {
+  const out = await lightmaps.probe(scene, camera, debug, pixels, [engine.getRenderWidth(), engine.getRenderHeight()]);
+  render();
+  return out;
+}
+
+const calls = wireBar({
+  load,
+  environment: applyEnvironment,
+  mode: applyMode,
+  normalMaps: () => {
+    lightmaps.setNormalMaps(state.normalMaps);
+    render();
+  },
+}, stage);
+camera.onViewMatrixChangedObservable.add(() => {
+  render();
+  views.emit([toFile(camera.position), toFile(camera.target)]);
+});
+window.addEventListener('resize', () => {
+  resize();
+  render();
+});
+engine.runRenderLoop(() => {
+  if (!dirty && !moving()) return;
+  dirty = false;
+  scene.render();
+});
+
+resize();
+applyEnvironment();
+applyMode();
+
+const ready = initialModel ? load(initialModel, initialModel.split('/').pop()) : Promise.resolve(status());
+
+/** The three.js page's calls (viewer.js), for tests and the side-by-side page. */
+window.aobakeViewer = {
+  engine: 'babylon',
+  ready,
+  load: (url) => load(url, url.split('/').pop()),
+  ...calls,
+  setDebug(name) {
+    lightmaps.setDebug(name);
+    render();
+  },
+  layers: () => lightmaps.baked.map((b) => b.extension.visibility !== undefined),
+  view,
+  /** [position, target] of the camera, in the file's frame. */
+  currentView: () => [toFile(camera.position), toFile(camera.target)],
+  onView: views.on,
+  probe: probePixels,
+  status,
+  size: () => [engine.getRenderWidth(), engine.getRenderHeight()],
+  /** The loader root's linear part (row-major): the file's frame to Babylon's. */
+  toScene: () => lightmaps.toScene,
+};
