@@ -14,7 +14,7 @@ import {
   RawCubeTexture, Scene, SceneLoader, Vector3, registerAobakeLightmap, toBakeRows,
 } from './vendor/babylon/aobake-babylon.js';
 import {
-  describe, environment, initialModel, say, state, status as barStatus, viewEvents, wireBar,
+  describe, environment, say, startPage, state, status as barStatus, viewEvents, wireBar,
 } from './bar.js';
 
 const canvas = document.getElementById('view');
@@ -175,30 +175,16 @@ engine.runRenderLoop(() => {
   scene.render();
 });
 
-resize();
-applyEnvironment();
-applyMode();
-
-const ready = initialModel ? load(initialModel, initialModel.split('/').pop()) : Promise.resolve(status());
-
-/** The three.js page's calls (viewer.js), for tests and the side-by-side page. */
-window.aobakeViewer = {
-  engine: 'babylon',
-  ready,
-  load: (url) => load(url, url.split('/').pop()),
-  ...calls,
-  setDebug(name) {
-    lightmaps.setDebug(name);
-    render();
+startPage('babylon', lightmaps, {
+  load, render, resize, environment: applyEnvironment, mode: applyMode,
+  api: {
+    view,
+    /** [position, target] of the camera, in the file's frame. */
+    currentView: () => [toFile(camera.position), toFile(camera.target)],
+    onView: views.on,
+    probe: probePixels,
+    size: () => [engine.getRenderWidth(), engine.getRenderHeight()],
+    /** The loader root's linear part (row-major): the file's frame to Babylon's. */
+    toScene: () => lightmaps.toScene,
   },
-  layers: () => lightmaps.baked.map((b) => b.extension.visibility !== undefined),
-  view,
-  /** [position, target] of the camera, in the file's frame. */
-  currentView: () => [toFile(camera.position), toFile(camera.target)],
-  onView: views.on,
-  probe: probePixels,
-  status,
-  size: () => [engine.getRenderWidth(), engine.getRenderHeight()],
-  /** The loader root's linear part (row-major): the file's frame to Babylon's. */
-  toScene: () => lightmaps.toScene,
-};
+}, calls);

@@ -209,3 +209,32 @@ export function viewEvents() {
     },
   };
 }
+
+/**
+ * Starts an engine's page: sizes and lights it, loads the URL's model and
+ * publishes `window.aobakeViewer` (the same calls on every engine's page).
+ * `page`: { load, render, resize, environment, mode, api } where `api`
+ * holds the engine's own calls (view, currentView, onView, probe, size).
+ */
+export function startPage(name, lightmaps, page, calls) {
+  page.resize();
+  page.environment();
+  page.mode();
+  const ready = initialModel
+    ? page.load(initialModel, initialModel.split('/').pop())
+    : Promise.resolve(status(lightmaps));
+  window.aobakeViewer = {
+    engine: name,
+    ready,
+    load: (url) => page.load(url, url.split('/').pop()),
+    ...calls,
+    setDebug(debug) {
+      lightmaps.setDebug(debug);
+      page.render();
+    },
+    /** Per baked primitive: whether it has the visibility layer. */
+    layers: () => lightmaps.baked.map((b) => b.extension.visibility !== undefined),
+    status: () => status(lightmaps),
+    ...page.api,
+  };
+}

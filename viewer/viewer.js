@@ -1,15 +1,16 @@
 // The viewer page in three.js: opens a baked GLB (URL, file picker or drop;
 // nothing is uploaded), lights it with an SH environment through a
 // LightProbe and the AOBAKE_lightmap plugin, and exposes
-// `window.aobakeViewer` for tests and the side-by-side page. The bar and
-// its state are bar.js's (shared with the Babylon.js page).
+// `window.aobakeViewer` (bar.js's startPage) for tests and the side-by-side
+// page. The bar and its state are bar.js's (shared with the Babylon.js
+// page).
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { AobakeLightmapPlugin, AobakeLightmaps } from './aobake-lightmap.js';
 import {
-  describe, environment, initialModel, say, state, status as barStatus, viewEvents, wireBar,
+  describe, environment, say, startPage, state, status as barStatus, viewEvents, wireBar,
 } from './bar.js';
 
 const canvas = document.getElementById('view');
@@ -152,37 +153,21 @@ window.addEventListener('resize', () => {
   render();
 });
 
-resize();
-applyEnvironment();
-applyMode();
-
-const ready = initialModel ? load(initialModel, initialModel.split('/').pop()) : Promise.resolve(status());
-
-/** For tests, scripts and the side-by-side page (the same calls as the
- * Babylon.js page's). */
-window.aobakeViewer = {
-  engine: 'three',
-  ready,
-  load: (url) => load(url, url.split('/').pop()),
-  ...calls,
-  setDebug(name) {
-    lightmaps.setDebug(name);
-    render();
+startPage('three', lightmaps, {
+  load, render, resize, environment: applyEnvironment, mode: applyMode,
+  api: {
+    /** The camera at `position` looking at `target`, in the file's frame. */
+    view(position, target) {
+      camera.position.fromArray(position);
+      controls.target.fromArray(target);
+      views.set([position, target], () => controls.update());
+      render();
+    },
+    /** [position, target] of the camera, in the file's frame. */
+    currentView: () => [camera.position.toArray(), controls.target.toArray()],
+    /** Called with [position, target] when the user moves the camera. */
+    onView: views.on,
+    probe: probePixels,
+    size: () => [canvas.width, canvas.height],
   },
-  /** Per baked primitive: whether it has the visibility layer. */
-  layers: () => lightmaps.baked.map((b) => b.extension.visibility !== undefined),
-  /** The camera at `position` looking at `target`, in the file's frame. */
-  view(position, target) {
-    camera.position.fromArray(position);
-    controls.target.fromArray(target);
-    views.set([position, target], () => controls.update());
-    render();
-  },
-  /** [position, target] of the camera, in the file's frame. */
-  currentView: () => [camera.position.toArray(), controls.target.toArray()],
-  /** Called with [position, target] when the user moves the camera. */
-  onView: views.on,
-  probe: probePixels,
-  status,
-  size: () => [canvas.width, canvas.height],
-};
+}, calls);
