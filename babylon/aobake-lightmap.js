@@ -39,8 +39,10 @@
 // the layer, the specular keeps Babylon's own occlusion from the baked AO.
 //
 // Imports: @babylonjs/core and @babylonjs/loaders (pinned in package.json),
-// and the engine-neutral ../viewer/aobake-extension.js (the extension's name
-// and checks, shared with the three.js plugin).
+// this folder's glsl.js (the layer's GLSL), and the engine-neutral modules
+// it shares with the three.js plugin: ../viewer/aobake-extension.js (the
+// extension's name and checks), ../viewer/aobake-sh.js (basis, quadrature,
+// Gamma, P) and, through glsl.js, ../viewer/aobake-glsl.js (the formulas).
 //
 // Use:
 //   import { registerAobakeLightmap, AobakeLightmaps } from './aobake-lightmap.js';
