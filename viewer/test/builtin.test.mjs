@@ -43,6 +43,22 @@ test('the built-in page loads the model, relights it and draws', async () => {
   await page.close();
 });
 
+test('the built-in Babylon.js page loads the model too, and the bundle arrives gzip-encoded', async () => {
+  const page = await open(browser, `${server.url}&engine=babylon`);
+  const status = await page.evaluate(() => window.aobakeViewer.status());
+  assert.equal(status.level, 'info', status.message);
+  assert.ok(status.baked > 0, 'baked primitives found');
+  assert.equal(await page.evaluate(() => window.aobakeViewer.engine), 'babylon');
+  assert.deepEqual(page.errors, []);
+  await page.close();
+  const base = new URL(server.url).origin;
+  const res = await fetch(`${base}/vendor/babylon/aobake-babylon.js`);
+  assert.equal(res.headers.get('content-encoding'), 'gzip');
+  assert.match(res.headers.get('content-type'), /javascript/);
+  const got = Buffer.from(await res.arrayBuffer());
+  assert.ok(got.equals(gunzipSync(readFileSync(join(viewerDir, 'vendor/babylon/aobake-babylon.js.gz')))));
+});
+
 test('the built-in files are this checkout\'s, and nothing else is served', async () => {
   const base = new URL(server.url).origin;
   for (const f of ['viewer.js', 'aobake-lightmap.js', 'bar.js', 'babylon-viewer.js', 'compare.js', 'aobake-sh.js', 'vendor/three/build/three.module.js']) {
