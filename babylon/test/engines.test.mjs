@@ -80,7 +80,8 @@ async function compare(pages, debug, pixels) {
 
 /** Mean |three - Babylon| of the two canvases (8-bit sRGB) over `mask`. */
 async function beauty(pages, pixels, mask) {
-  const shots = await Promise.all(pages.map(async (p) => PNG.sync.read(await p.locator('#view').screenshot())));
+  // A software renderer can take long to draw a frame on a loaded machine.
+  const shots = await Promise.all(pages.map(async (p) => PNG.sync.read(await p.locator('#view').screenshot({ timeout: 300000 }))));
   let n = 0;
   let sum = 0;
   for (let k = 0; k < pixels.length; k++) {
@@ -118,8 +119,12 @@ async function sameBakeTwoEngines(name, debugs) {
       assert.ok(r.onlyOne < 0.02 * r.n, `${name} ${debug}: ${r.onlyOne} pixels covered by one engine only (the views differ)`);
       results[debug] = r;
     }
-    const b = await beauty(pages, pixels, results[debugs[0]].mask);
-    console.log(`# ${name} beauty frames (SH relighting, sky): mean |three - Babylon| = ${b.toFixed(2)}/255 on baked surfaces (the engines' own BRDFs, and Babylon's environment specular, which the three.js page does not draw)`);
+    // Measured and printed, not asserted (the engines' BRDFs differ).
+    const b = await beauty(pages, pixels, results[debugs[0]].mask).catch((e) => {
+      console.log(`# ${name} beauty frames not measured: ${e.message.split('\n')[0]}`);
+      return NaN;
+    });
+    if (!Number.isNaN(b)) console.log(`# ${name} beauty frames (SH relighting, sky): mean |three - Babylon| = ${b.toFixed(2)}/255 on baked surfaces (the engines' own BRDFs, and Babylon's environment specular, which the three.js page does not draw)`);
     for (const p of pages) {
       assert.deepEqual(p.errors, []);
       await p.close();
