@@ -14,7 +14,7 @@ import {
   RawCubeTexture, Scene, SceneLoader, Vector3, registerAobakeLightmap, toBakeRows,
 } from './vendor/babylon/aobake-babylon.js';
 import {
-  describe, environment, say, startPage, state, status as barStatus, viewEvents, wireBar,
+  describe, environment, say, startPage, state, status as barStatus, viewEvents,
 } from './bar.js';
 
 const canvas = document.getElementById('view');
@@ -152,15 +152,6 @@ async function probePixels(debug, pixels) {
   return out;
 }
 
-const calls = wireBar({
-  load,
-  environment: applyEnvironment,
-  mode: applyMode,
-  normalMaps: () => {
-    lightmaps.setNormalMaps(state.normalMaps);
-    render();
-  },
-}, stage);
 camera.onViewMatrixChangedObservable.add(() => {
   render();
   views.emit([toFile(camera.position), toFile(camera.target)]);
@@ -187,4 +178,4 @@ startPage('babylon', lightmaps, {
     /** The loader root's linear part (row-major): the file's frame to Babylon's. */
     toScene: () => lightmaps.toScene,
   },
-}, calls);
+}, stage);

@@ -214,9 +214,19 @@ export function viewEvents() {
  * Starts an engine's page: sizes and lights it, loads the URL's model and
  * publishes `window.aobakeViewer` (the same calls on every engine's page).
  * `page`: { load, render, resize, environment, mode, api } where `api`
- * holds the engine's own calls (view, currentView, onView, probe, size).
+ * holds the engine's own calls (view, currentView, onView, probe, size);
+ * the bar (wireBar) is wired to those hooks, its drops to `stage`.
  */
-export function startPage(name, lightmaps, page, calls) {
+export function startPage(name, lightmaps, page, stage) {
+  const calls = wireBar({
+    load: page.load,
+    environment: page.environment,
+    mode: page.mode,
+    normalMaps: () => {
+      lightmaps.setNormalMaps(state.normalMaps);
+      page.render();
+    },
+  }, stage);
   page.resize();
   page.environment();
   page.mode();

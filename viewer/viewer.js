@@ -10,7 +10,7 @@ import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { AobakeLightmapPlugin, AobakeLightmaps } from './aobake-lightmap.js';
 import {
-  describe, environment, say, startPage, state, status as barStatus, viewEvents, wireBar,
+  describe, environment, say, startPage, state, status as barStatus, viewEvents,
 } from './bar.js';
 
 const canvas = document.getElementById('view');
@@ -135,15 +135,6 @@ function probePixels(debug, pixels) {
   });
 }
 
-const calls = wireBar({
-  load,
-  environment: applyEnvironment,
-  mode: applyMode,
-  normalMaps: () => {
-    lightmaps.setNormalMaps(state.normalMaps);
-    render();
-  },
-}, stage);
 controls.addEventListener('change', () => {
   render();
   views.emit([camera.position.toArray(), controls.target.toArray()]);
@@ -170,4 +161,4 @@ startPage('three', lightmaps, {
     probe: probePixels,
     size: () => [canvas.width, canvas.height],
   },
-}, calls);
+}, stage);

@@ -225,3 +225,13 @@ export function anchoredAgreement(probes, images, vImages, ext, L) {
   }
   return { n, worst, moved, scale };
 }
+
+/** The largest |a - b| of the first channel over the pixels `a` covers
+ * (alpha 1): two probes of the same view. */
+export function largestDifference(a, b) {
+  let worst = 0;
+  for (let k = 0; k < a.length; k++) {
+    if (a[k][3] === 1) worst = Math.max(worst, Math.abs(a[k][0] - b[k][0]));
+  }
+  return worst;
+}

@@ -11,8 +11,8 @@ import { readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { bake, launch, open, pick, repoDir, serve, sharedAssets, tempDir, tiltedPlane } from './harness.mjs';
 import {
-  anchoredAgreement, basis, coefficientsAt, lightmapOf, projectScalar, readGlb, textureImage,
-  writeGlb,
+  anchoredAgreement, basis, coefficientsAt, largestDifference, lightmapOf, projectScalar, readGlb,
+  textureImage, writeGlb,
 } from './decode.mjs';
 
 const dir = tempDir();
@@ -359,11 +359,7 @@ describe('the visibility layer: normal maps drive the baked light', () => {
     await page.evaluate(() => window.aobakeViewer.setNormalMaps(false));
     const off = await probe(page, 'mapped', pixels);
     const offPlain = await probe(page, 'irradiance', pixels);
-    let worstOff = 0;
-    for (let k = 0; k < pixels.length; k++) {
-      if (off[k][3] !== 1) continue;
-      worstOff = Math.max(worstOff, Math.abs(off[k][0] - offPlain[k][0]));
-    }
+    const worstOff = largestDifference(off, offPlain);
     console.log(`# helmet, normal maps off: max |mapped - c.L| = ${worstOff.toExponential(2)}`);
     assert.ok(worstOff < 1e-4 * scale + 1e-6, `${worstOff}`);
     await page.evaluate(() => window.aobakeViewer.setNormalMaps(true));
