@@ -1,7 +1,9 @@
 //! The jump at seams whose two sides lie on different atlas pages, as a
 //! viewer sees it: each side's bilinear AO lookup on its own page's float
-//! lightmap (as encoded), at 3 points per texel, with `--seams off` and
-//! with stitching (both sides pulled to the shared target).
+//! lightmap (before encoding), at 3 points per texel, with `--seams off`
+//! and with stitching (both sides pulled to the shared target); then, for
+//! the stitched bake, the 8-bit images before and after the pass that
+//! solves both sides together (`seams::across`, run by the write).
 //!
 //!     cargo run --release --example cross_page_seams -- SCENE.glb [DENSITY 28] [PAGE 1024]
 
@@ -36,11 +38,15 @@ fn main() {
         let level = job.level().expect("prepare");
         let pages: Vec<u32> = (0..level.page_count()).collect();
         let mut ao: Vec<(u32, u32, Vec<f32>)> = vec![(0, 0, Vec::new()); pages.len()];
-        job.pages(&level, &pages, &mut |p, _, out| {
-            let lm = out.lightmap;
-            ao[p.page as usize] = (lm.width, lm.height, lm.ao);
-        })
-        .expect("bake");
+        let done = job
+            .pages(&level, &pages, &mut |p, _, out| {
+                let lm = out.lightmap;
+                ao[p.page as usize] = (lm.width, lm.height, lm.ao);
+            })
+            .expect("bake");
+        let encoded: Vec<_> = done.iter().map(|d| &d.encoded).collect();
+        job.write(&level, &encoded, None).expect("write");
+        let across = job.across;
         let seams = cross_page_seams(
             &level.geometry.receivers,
             &level.atlas,
@@ -56,10 +62,8 @@ fn main() {
         let mean = jumps.iter().sum::<f64>() / n;
         let p95 = jumps.get((0.95 * n) as usize).copied().unwrap_or(0.0);
         let over = jumps.iter().filter(|&&j| j > 8.0 / 255.0).count() as f64 / n;
-        let seconds: f64 = job
-            .timer
-            .into_merged_stages()
-            .iter()
+        let stages = job.timer.into_merged_stages();
+        let seconds: f64 = (stages.iter())
             .filter(|st| st.stage == "seams")
             .map(|st| st.seconds)
             .sum();
@@ -69,5 +73,19 @@ fn main() {
             jumps.len(),
             100.0 * over
         );
+        if let Some(a) = across {
+            let pass: f64 = (stages.iter())
+                .filter(|st| st.stage == "cross-page seams")
+                .map(|st| st.seconds)
+                .sum();
+            println!(
+                "| {mode:?}, 8-bit, before the pass across pages | {} | {} | {:.4} | {:.4} | | |",
+                a.seams, a.points, a.ao_before, a.p95_before
+            );
+            println!(
+                "| {mode:?}, 8-bit, after it | {} | {} | {:.4} | {:.4} | | {pass:.2} ({} pages re-encoded, {} unknowns) |",
+                a.seams, a.points, a.ao_after, a.p95_after, a.pages_changed, a.solve.unknowns
+            );
+        }
     }
 }

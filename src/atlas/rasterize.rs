@@ -279,6 +279,36 @@ pub fn rasterize(meshes: &[ReceiverMesh], atlas: &Atlas) -> Receivers {
     out
 }
 
+/// Which texels of `atlas` (one page's) are covered, the texels
+/// [`rasterize`] gives a receiver (a centre within its conservative reach
+/// of a triangle), decided only where `needed` is true (false elsewhere):
+/// the coverage of a few texels without making every receiver.
+pub fn covered(meshes: &[ReceiverMesh], atlas: &Atlas, needed: &[bool]) -> Vec<bool> {
+    let (w, h) = (atlas.width, atlas.height);
+    let mut out = vec![false; needed.len()];
+    let reach2 = CONSERVATIVE_REACH * CONSERVATIVE_REACH;
+    for t in surface_triangles(meshes, atlas) {
+        let lo = t.uv.iter().fold(Vec2::INFINITY, |a, &p| a.min(p)) - CONSERVATIVE_REACH;
+        let hi = t.uv.iter().fold(Vec2::NEG_INFINITY, |a, &p| a.max(p)) + CONSERVATIVE_REACH;
+        let xa = (lo.x.floor().max(0.0) as u32).min(w - 1);
+        let xb = (hi.x.ceil().max(0.0) as u32).min(w - 1);
+        let ya = (lo.y.floor().max(0.0) as u32).min(h - 1);
+        let yb = (hi.y.ceil().max(0.0) as u32).min(h - 1);
+        for y in ya..=yb {
+            for x in xa..=xb {
+                let i = (y * w + x) as usize;
+                if !needed[i] || out[i] {
+                    continue;
+                }
+                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                out[i] = inside(p, &t.uv)
+                    || closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2]).1 <= reach2;
+            }
+        }
+    }
+    out
+}
+
 fn rasterize_band(tris: &[SurfaceTri], list: &[u32], band: u32, w: u32, h: u32) -> Receivers {
     let y0 = band * BAND_ROWS;
     let y1 = (y0 + BAND_ROWS).min(h);

@@ -42,7 +42,7 @@ pub use report::{
 pub use settings::{BakeSettings, Method, RunOptions, UvSource, VisibilityMode};
 pub use shard::{Merged, bake_shard, merge};
 
-use crate::atlas::{Atlas, Receivers};
+use crate::atlas::{self, Atlas, Receivers};
 use crate::bake::Bake;
 use crate::bake::adaptive::AdaptiveStats;
 use crate::bake::sheared::ShearedStats;
@@ -51,7 +51,10 @@ use crate::error::{Error, Result};
 use crate::file;
 use crate::geometry::BakeGeometry;
 use crate::gltf::{self, Scene};
+use crate::lightmap::BorderMode;
 use crate::lightmap::Lightmap;
+use crate::lightmap::border;
+use crate::lightmap::seams::across::{self, AcrossReport};
 use crate::stage::StageTimer;
 use std::path::Path;
 
@@ -64,6 +67,8 @@ pub struct Job<'a> {
     pub settings: &'a BakeSettings,
     pub run: &'a RunOptions,
     pub timer: StageTimer,
+    /// What [`Job::write`]'s pass over the seams across pages did.
+    pub across: Option<AcrossReport>,
 }
 
 impl<'a> Job<'a> {
@@ -79,6 +84,7 @@ impl<'a> Job<'a> {
             settings,
             run,
             timer,
+            across: None,
         }
     }
 
@@ -117,17 +123,40 @@ impl<'a> Job<'a> {
     }
 
     /// The output GLB from every page's encoded images (`encoded[k]` is
-    /// page k's) and the warnings. `output_dir`: where it will be written.
+    /// page k's) and the warnings, after the seams across pages are solved
+    /// on them ([`across`]). `output_dir`: where it will be written.
     pub fn write(
         &mut self,
         level: &Level,
         encoded: &[&Encoded],
         output_dir: Option<&Path>,
     ) -> Result<(Vec<u8>, Vec<String>)> {
+        let mut closed = Vec::new();
+        if !level.cross_seams.is_empty() {
+            self.timer.restart();
+            let scale = match self.settings.border {
+                BorderMode::Fit => border::SEAM_SCALE,
+                BorderMode::Off => 1.0,
+            };
+            let receivers = &level.geometry.receivers;
+            let (pages, report) = across::close(
+                &level.cross_seams,
+                &level.atlas.pages,
+                encoded,
+                scale,
+                |k, needed| atlas::rasterize::covered(receivers, &level.atlas.page(k), needed),
+            )?;
+            closed = pages;
+            self.across = Some(report);
+            self.timer.lap("cross-page seams");
+        }
+        let encoded: Vec<&Encoded> = (encoded.iter().enumerate())
+            .map(|(k, &e)| closed.get(k).and_then(Option::as_ref).unwrap_or(e))
+            .collect();
         write(
             self.scene,
             level,
-            encoded,
+            &encoded,
             self.settings,
             output_dir,
             &mut self.timer,
@@ -144,6 +173,7 @@ impl<'a> Job<'a> {
         input: Option<&Path>,
     ) -> Report {
         let mut report = level_report(level, done, self.settings, warnings);
+        report.cross_page_seams = self.across;
         if let Some(input) = input {
             report.input = input.display().to_string();
         }

@@ -13,6 +13,7 @@ use crate::job::settings::{BakeSettings, Method};
 use crate::lightmap::BorderReport;
 use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
+use crate::lightmap::seams::across::AcrossReport;
 use crate::shard::Shard;
 use crate::stage::{StageTime, total};
 use serde::Serialize;
@@ -118,6 +119,10 @@ pub struct Report {
     /// one page; per page in `pages`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub border: Option<BorderReport>,
+    /// The seams across pages, solved together once every page is encoded
+    /// ([`crate::lightmap::seams::across`]; bakes in one process).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_page_seams: Option<AcrossReport>,
     /// The error an engine shows (`--engine-view-points`): bilinear lookups
     /// of the written textures at surface points against a reference, by
     /// texel class, over every baked page; per page in `pages`.
@@ -375,6 +380,7 @@ pub fn level_report(
             [one] if level.page_count() == 1 => one.border,
             _ => None,
         },
+        cross_page_seams: None,
         rays_per_second: if pass_seconds > 0.0 {
             rays as f64 / pass_seconds
         } else {

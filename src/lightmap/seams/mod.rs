@@ -13,8 +13,11 @@
 //! 3. [`solve`]: least-squares stitching of the border and gutter texels
 //!    in the seams' bilinear footprints;
 //! 4. [`anchor`]: for seams whose sides lie on two pages, the target both
-//!    pages' sides are stitched to.
+//!    pages' sides are stitched to;
+//! 5. [`across`]: once every page is encoded, those seams' two sides
+//!    solved together on the written images.
 
+pub mod across;
 pub mod anchor;
 pub mod find;
 pub mod metric;

@@ -106,10 +106,7 @@ pub fn stitch(
     fixed: impl Fn(u32) -> bool,
     baked: impl Fn(u32, &mut [f32]) + Sync,
 ) -> (Vec<u32>, Vec<f32>, StitchStats) {
-    // Constraint rows over texels, then over unknowns.
-    let mut unknown_of: HashMap<u32, u32> = HashMap::new();
-    let mut texel_of: Vec<u32> = Vec::new();
-    let mut rows: Vec<Row> = Vec::new();
+    let mut system = System::new(fixed);
     // Two-sided points (side A positive, side B negative), then anchors:
     // each a row's taps (texel, weight), its anchor and scale.
     let tapped = |uv: [f32; 2], scale: f64| {
@@ -138,20 +135,61 @@ pub fn stitch(
         (tapped(a.uv, scale).collect(), Some(k), scale)
     });
     for (row_taps, anchor, scale) in two_sided.chain(one_sided) {
+        system.push(row_taps, anchor, scale);
+    }
+    system.solve(channels, baked, |k| &anchor_at(k).target)
+}
+
+/// A least-squares system over texels being assembled: rows of bilinear
+/// taps, the texels `fixed` says may not move entering as constants, the
+/// others numbered as unknowns in the order they first appear. Solved by
+/// [`System::solve`]: minimise Sum_t (x_t - x0_t)^2 + lambda^2 Sum_rows
+/// (row(x) - target)^2 per channel ([`SEAM_WEIGHT`] = lambda).
+pub struct System<F: Fn(u32) -> bool> {
+    fixed: F,
+    unknown_of: HashMap<u32, u32>,
+    texel_of: Vec<u32>,
+    rows: Vec<Row>,
+}
+
+impl<F: Fn(u32) -> bool> System<F> {
+    pub fn new(fixed: F) -> Self {
+        System {
+            fixed,
+            unknown_of: HashMap::new(),
+            texel_of: Vec::new(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// A two-sided row: its taps (texel, weight, side B's negative) sum to
+    /// 0; `scale` is the row's weight, already in the taps' weights.
+    pub fn push_two_sided(&mut self, taps: impl IntoIterator<Item = (u32, f64)>, scale: f64) {
+        self.push(taps, None, scale);
+    }
+
+    /// A row: `anchor`, for a one-sided row, the index of its target.
+    fn push(
+        &mut self,
+        taps: impl IntoIterator<Item = (u32, f64)>,
+        anchor: Option<usize>,
+        scale: f64,
+    ) {
         let mut row = Row {
             anchor,
             scale,
             ..Row::default()
         };
-        for (texel, w) in row_taps {
+        for (texel, w) in taps {
             if w == 0.0 {
                 continue;
             }
-            let (list, id) = if fixed(texel) {
+            let (list, id) = if (self.fixed)(texel) {
                 (&mut row.fixed, texel)
             } else {
-                let next = texel_of.len() as u32;
-                let u = *unknown_of.entry(texel).or_insert_with(|| {
+                let next = self.texel_of.len() as u32;
+                let texel_of = &mut self.texel_of;
+                let u = *self.unknown_of.entry(texel).or_insert_with(|| {
                     texel_of.push(texel);
                     next
                 });
@@ -164,142 +202,154 @@ pub fn stitch(
         }
         row.free.retain(|e| e.1.abs() > 1e-12);
         if !row.free.is_empty() {
-            rows.push(row);
+            self.rows.push(row);
         }
-    }
-    let n = texel_of.len();
-    if n == 0 || rows.is_empty() {
-        let stats = StitchStats {
-            converged: true,
-            ..Default::default()
-        };
-        return (Vec::new(), Vec::new(), stats);
-    }
-    // Components: unknowns tied by a row (union-find).
-    let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn root(parent: &mut [u32], mut i: u32) -> u32 {
-        while parent[i as usize] != i {
-            parent[i as usize] = parent[parent[i as usize] as usize];
-            i = parent[i as usize];
-        }
-        i
-    }
-    for row in &rows {
-        let first = root(&mut parent, row.free[0].0);
-        for &(u, _) in &row.free[1..] {
-            let r = root(&mut parent, u);
-            if r != first {
-                parent[r as usize] = first;
-            }
-        }
-    }
-    let mut component_of: HashMap<u32, usize> = HashMap::new();
-    let mut members: Vec<Vec<u32>> = Vec::new();
-    for u in 0..n as u32 {
-        let r = root(&mut parent, u);
-        let c = *component_of.entry(r).or_insert_with(|| {
-            members.push(Vec::new());
-            members.len() - 1
-        });
-        members[c].push(u);
-    }
-    let mut component_rows: Vec<Vec<usize>> = vec![Vec::new(); members.len()];
-    for (i, row) in rows.iter().enumerate() {
-        let r = root(&mut parent, row.free[0].0);
-        component_rows[component_of[&r]].push(i);
     }
 
-    // Each component: local indices, its baked values, the solve.
-    let solved: Vec<(Vec<u32>, Vec<f32>, usize, bool)> = members
-        .par_iter()
-        .zip(&component_rows)
-        .map(|(members, row_ids)| {
-            let local: HashMap<u32, usize> =
-                members.iter().enumerate().map(|(i, &u)| (u, i)).collect();
-            let c = channels;
-            // Each row's free part in local indices, and what its fixed
-            // texels add per channel.
-            let mut value = vec![0.0f32; c];
-            let (rows, constants): (Vec<LocalRow>, Vec<Vec<f64>>) = row_ids
-                .iter()
-                .map(|&r| {
-                    let free = rows[r].free.iter().map(|&(u, w)| (local[&u], w)).collect();
-                    let mut k = vec![0.0f64; c];
-                    for &(t, w) in &rows[r].fixed {
-                        baked(t, &mut value);
-                        for (k, v) in k.iter_mut().zip(&value) {
-                            *k += w * *v as f64;
-                        }
-                    }
-                    if let Some(a) = rows[r].anchor {
-                        for (k, v) in k.iter_mut().zip(&anchor_at(a).target) {
-                            *k -= rows[r].scale * *v as f64;
-                        }
-                    }
-                    (free, k)
-                })
-                .unzip();
-            let m = members.len();
-            let lambda2 = SEAM_WEIGHT * SEAM_WEIGHT;
-            let texels: Vec<u32> = members.iter().map(|&u| texel_of[u as usize]).collect();
-            let mut diagonal = vec![1.0f64; m];
-            for row in &rows {
-                for &(i, w) in row {
-                    diagonal[i] += lambda2 * w * w;
-                }
-            }
-            let apply = |x: &[f64], y: &mut [f64]| {
-                y.copy_from_slice(x);
-                let mut d = vec![0.0f64; c];
-                for row in &rows {
-                    d.iter_mut().for_each(|v| *v = 0.0);
-                    for &(i, w) in row {
-                        for (dk, xk) in d.iter_mut().zip(&x[i * c..(i + 1) * c]) {
-                            *dk += w * xk;
-                        }
-                    }
-                    for &(i, w) in row {
-                        for (yk, dk) in y[i * c..(i + 1) * c].iter_mut().zip(&d) {
-                            *yk += lambda2 * w * dk;
-                        }
-                    }
-                }
+    /// The unknowns' texels, their solved values (`channels` each, in the
+    /// same order) and what the solve did. `baked(texel, out)` writes a
+    /// texel's `channels` values; `target(k)` one-sided row k's.
+    pub fn solve<'t>(
+        self,
+        channels: usize,
+        baked: impl Fn(u32, &mut [f32]) + Sync,
+        target: impl Fn(usize) -> &'t [f32] + Sync,
+    ) -> (Vec<u32>, Vec<f32>, StitchStats) {
+        let System { texel_of, rows, .. } = self;
+        let n = texel_of.len();
+        if n == 0 || rows.is_empty() {
+            let stats = StitchStats {
+                converged: true,
+                ..Default::default()
             };
-            let mut start = vec![0.0f32; m * c];
-            for (i, &t) in texels.iter().enumerate() {
-                baked(t, &mut start[i * c..(i + 1) * c]);
+            return (Vec::new(), Vec::new(), stats);
+        }
+        // Components: unknowns tied by a row (union-find).
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn root(parent: &mut [u32], mut i: u32) -> u32 {
+            while parent[i as usize] != i {
+                parent[i as usize] = parent[parent[i as usize] as usize];
+                i = parent[i as usize];
             }
-            let x0: Vec<f64> = start.iter().map(|&v| v as f64).collect();
-            // Right-hand side: x0 less lambda^2 C^T k (the fixed texels'
-            // part of each constraint).
-            let mut b = x0.clone();
-            for (row, k) in rows.iter().zip(&constants) {
-                for &(i, w) in row {
-                    for (bk, kk) in b[i * c..(i + 1) * c].iter_mut().zip(k) {
-                        *bk -= lambda2 * w * kk;
-                    }
+            i
+        }
+        for row in &rows {
+            let first = root(&mut parent, row.free[0].0);
+            for &(u, _) in &row.free[1..] {
+                let r = root(&mut parent, u);
+                if r != first {
+                    parent[r as usize] = first;
                 }
             }
-            let (x, most, converged) = conjugate_gradients(&apply, &diagonal, &b, &x0, c);
-            let out: Vec<f32> = x.iter().map(|&v| v as f32).collect();
-            (texels, out, most, converged)
-        })
-        .collect();
-    let mut stats = StitchStats {
-        unknowns: n,
-        constraints: rows.len(),
-        components: members.len(),
-        max_iterations: 0,
-        converged: true,
-    };
-    let (mut texels, mut values) = (Vec::with_capacity(n), Vec::with_capacity(n * channels));
-    for (t, out, iterations, converged) in solved {
-        stats.max_iterations = stats.max_iterations.max(iterations);
-        stats.converged &= converged;
-        texels.extend(t);
-        values.extend(out);
+        }
+        let mut component_of: HashMap<u32, usize> = HashMap::new();
+        let mut members: Vec<Vec<u32>> = Vec::new();
+        for u in 0..n as u32 {
+            let r = root(&mut parent, u);
+            let c = *component_of.entry(r).or_insert_with(|| {
+                members.push(Vec::new());
+                members.len() - 1
+            });
+            members[c].push(u);
+        }
+        let mut component_rows: Vec<Vec<usize>> = vec![Vec::new(); members.len()];
+        for (i, row) in rows.iter().enumerate() {
+            let r = root(&mut parent, row.free[0].0);
+            component_rows[component_of[&r]].push(i);
+        }
+
+        // Each component: local indices, its baked values, the solve.
+        let solved: Vec<(Vec<u32>, Vec<f32>, usize, bool)> = members
+            .par_iter()
+            .zip(&component_rows)
+            .map(|(members, row_ids)| {
+                let local: HashMap<u32, usize> =
+                    members.iter().enumerate().map(|(i, &u)| (u, i)).collect();
+                let c = channels;
+                // Each row's free part in local indices, and what its fixed
+                // texels add per channel.
+                let mut value = vec![0.0f32; c];
+                let (rows, constants): (Vec<LocalRow>, Vec<Vec<f64>>) = row_ids
+                    .iter()
+                    .map(|&r| {
+                        let free = rows[r].free.iter().map(|&(u, w)| (local[&u], w)).collect();
+                        let mut k = vec![0.0f64; c];
+                        for &(t, w) in &rows[r].fixed {
+                            baked(t, &mut value);
+                            for (k, v) in k.iter_mut().zip(&value) {
+                                *k += w * *v as f64;
+                            }
+                        }
+                        if let Some(a) = rows[r].anchor {
+                            for (k, v) in k.iter_mut().zip(target(a)) {
+                                *k -= rows[r].scale * *v as f64;
+                            }
+                        }
+                        (free, k)
+                    })
+                    .unzip();
+                let m = members.len();
+                let lambda2 = SEAM_WEIGHT * SEAM_WEIGHT;
+                let texels: Vec<u32> = members.iter().map(|&u| texel_of[u as usize]).collect();
+                let mut diagonal = vec![1.0f64; m];
+                for row in &rows {
+                    for &(i, w) in row {
+                        diagonal[i] += lambda2 * w * w;
+                    }
+                }
+                let apply = |x: &[f64], y: &mut [f64]| {
+                    y.copy_from_slice(x);
+                    let mut d = vec![0.0f64; c];
+                    for row in &rows {
+                        d.iter_mut().for_each(|v| *v = 0.0);
+                        for &(i, w) in row {
+                            for (dk, xk) in d.iter_mut().zip(&x[i * c..(i + 1) * c]) {
+                                *dk += w * xk;
+                            }
+                        }
+                        for &(i, w) in row {
+                            for (yk, dk) in y[i * c..(i + 1) * c].iter_mut().zip(&d) {
+                                *yk += lambda2 * w * dk;
+                            }
+                        }
+                    }
+                };
+                let mut start = vec![0.0f32; m * c];
+                for (i, &t) in texels.iter().enumerate() {
+                    baked(t, &mut start[i * c..(i + 1) * c]);
+                }
+                let x0: Vec<f64> = start.iter().map(|&v| v as f64).collect();
+                // Right-hand side: x0 less lambda^2 C^T k (the fixed texels'
+                // part of each constraint).
+                let mut b = x0.clone();
+                for (row, k) in rows.iter().zip(&constants) {
+                    for &(i, w) in row {
+                        for (bk, kk) in b[i * c..(i + 1) * c].iter_mut().zip(k) {
+                            *bk -= lambda2 * w * kk;
+                        }
+                    }
+                }
+                let (x, most, converged) = conjugate_gradients(&apply, &diagonal, &b, &x0, c);
+                let out: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+                (texels, out, most, converged)
+            })
+            .collect();
+        let mut stats = StitchStats {
+            unknowns: n,
+            constraints: rows.len(),
+            components: members.len(),
+            max_iterations: 0,
+            converged: true,
+        };
+        let (mut texels, mut values) = (Vec::with_capacity(n), Vec::with_capacity(n * channels));
+        for (t, out, iterations, converged) in solved {
+            stats.max_iterations = stats.max_iterations.max(iterations);
+            stats.converged &= converged;
+            texels.extend(t);
+            values.extend(out);
+        }
+        (texels, values, stats)
     }
-    (texels, values, stats)
 }
 
 /// Solves M X = B for symmetric positive definite M and `channels`
