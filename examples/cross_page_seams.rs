@@ -3,7 +3,7 @@
 //! lightmap (before encoding), at 3 points per texel, with `--seams off`
 //! and with stitching (both sides pulled to the shared target); then, for
 //! the stitched bake, the 8-bit images before and after the pass that
-//! solves both sides together (`seams::across`, run by the write).
+//! solves both sides together (`job::across`, run by the write).
 //!
 //!     cargo run --release --example cross_page_seams -- SCENE.glb [DENSITY 28] [PAGE 1024]
 

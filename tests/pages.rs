@@ -464,7 +464,7 @@ fn cross_page_jump(
 
 /// Seams across pages: each page's stitch pulls its side to the target
 /// both pages compute alike, and once every page is encoded the two sides
-/// are solved together (`seams::across`), so the jump a viewer sees
+/// are solved together (`job::across`), so the jump a viewer sees
 /// between the pages in the written file falls to what a seam within a
 /// page shows.
 #[test]

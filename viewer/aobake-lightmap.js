@@ -42,6 +42,14 @@
 //   const gltf = await loader.loadAsync(url);
 //   lightmaps.setEnvironment(lightProbe.sh);  // radiance SH, world space
 //   lightmaps.setMode('sh');                  // 'sh' | 'ao' | 'off'
+//
+// Which light the bake replaces: a material with an environment map
+// (scene.environment or its envMap, PMREM-filtered, as MeshStandardMaterial
+// uses it) has its environment map's diffuse replaced, so give
+// setEnvironment that map's SH (LightProbeGenerator.fromCubeTexture, times
+// envMapIntensity); without one, the scene's LightProbe's diffuse is
+// replaced (give its sh). A LightProbe beside an environment map keeps
+// adding its own unoccluded light.
 
 import {
   ClampToEdgeWrapping,
@@ -65,6 +73,8 @@ export const MODES = { off: 0, ao: 1, sh: 2 };
 
 /** Debug outputs (written raw, for tests and diagnostics). */
 export const DEBUG = {
+  // probe: the environment's own unoccluded irradiance over pi, the light
+  // the bake replaces (the environment map's, else the LightProbe's).
   none: 0, irradiance: 1, ao: 2, uv: 3, probe: 4,
   // With the layer: the normal-mapped irradiance over pi, and the world
   // normals n' (normal-mapped) and n (vertex), as 0.5 + 0.5 n.
@@ -340,17 +350,28 @@ export function patchMaterial(material, lightmaps, textures, ext) {
         /* glsl */ `#include <lights_fragment_maps>
 #if defined( RE_IndirectDiffuse )
   if (aobakeMode == 2) {
-    // The bake replaces the probe's unoccluded light: three's irradiance E
-    // is pi times the decoded sum.
-    irradiance -= getLightProbeIrradiance(lightProbe, geometryNormal);
+    // The bake replaces the environment's unoccluded diffuse light: three's
+    // irradiance E is pi times the decoded sum.
 #ifdef AOBAKE_VISIBILITY
     // The normal map's n' (geometryNormal) relit against the vertex
     // normal n the bake used (nonPerturbedNormal), both in world space.
-    irradiance += PI * aobakeMappedIrradiance(
+    vec3 aobakeE = PI * aobakeMappedIrradiance(
       transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),
       transformNormalByInverseViewMatrix(geometryNormal, viewMatrix));
 #else
-    irradiance += PI * aobakeIrradiance();
+    vec3 aobakeE = PI * aobakeIrradiance();
+#endif
+#if defined( USE_ENVMAP ) && defined( STANDARD ) && defined( ENVMAP_TYPE_PMREM )
+    // The environment is the material's environment map (scene.environment
+    // or envMap): its diffuse (iblIrradiance, which three's multiple
+    // scattering also reads) is replaced; a LightProbe adds as it would.
+    iblIrradiance += aobakeE - getIBLIrradiance(geometryNormal);
+#elif defined( USE_LIGHT_PROBES )
+    // The environment is the LightProbe.
+    irradiance += aobakeE - getLightProbeIrradiance(lightProbe, geometryNormal);
+#else
+    // No environment light in the scene: the bake's is the only one.
+    irradiance += aobakeE;
 #endif
   }
 #endif
@@ -375,7 +396,13 @@ export function patchMaterial(material, lightmaps, textures, ext) {
   if (aobakeDebug == 1) gl_FragColor = vec4(aobakeIrradiance(), 1.0);
   else if (aobakeDebug == 2) gl_FragColor = vec4(vec3(texture2D(aobakeAoTex, vAobakeUv).r), 1.0);
   else if (aobakeDebug == 3) gl_FragColor = vec4(vAobakeUv, 0.0, 1.0);
+#if defined( USE_ENVMAP ) && defined( STANDARD ) && defined( ENVMAP_TYPE_PMREM )
+  else if (aobakeDebug == 4) gl_FragColor = vec4(getIBLIrradiance(geometryNormal) / PI, 1.0);
+#elif defined( USE_LIGHT_PROBES )
   else if (aobakeDebug == 4) gl_FragColor = vec4(getLightProbeIrradiance(lightProbe, geometryNormal) / PI, 1.0);
+#else
+  else if (aobakeDebug == 4) gl_FragColor = vec4(0.0, 0.0, 0.0, 1.0);
+#endif
 #ifdef AOBAKE_VISIBILITY
   else if (aobakeDebug == 5) gl_FragColor = vec4(aobakeMappedIrradiance(
     transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),
@@ -385,7 +412,7 @@ export function patchMaterial(material, lightmaps, textures, ext) {
   else if (aobakeDebug == 7) gl_FragColor = vec4(0.5 + 0.5 * transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), 1.0);`,
       );
   };
-  material.customProgramCacheKey = () => `aobake-lightmap-v2-${hasLayer ? ext.visibilityScale.length : 0}`;
+  material.customProgramCacheKey = () => `aobake-lightmap-v3-${hasLayer ? ext.visibilityScale.length : 0}`;
   // The material's own occlusionTexture would multiply the indirect light
   // again: the bake's AO is applied by the modes above instead.
   material.aoMapIntensity = 0;

@@ -1,6 +1,8 @@
 // The viewer page in three.js: opens a baked GLB (URL, file picker or drop;
-// nothing is uploaded), lights it with an SH environment through a
-// LightProbe and the AOBAKE_lightmap plugin, and exposes
+// nothing is uploaded), lights it with an environment (a LightProbe of its
+// SH; or, with setLighting('environment'), a PMREM-filtered map of its
+// radiance as scene.environment: diffuse and specular, like the Babylon.js
+// page's cube) and the AOBAKE_lightmap plugin, and exposes
 // `window.aobakeViewer` (bar.js's startPage) for tests and the side-by-side
 // page. The bar and its state are bar.js's (shared with the Babylon.js
 // page).
@@ -23,8 +25,12 @@ const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x303134);
 const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 1000);
 const controls = new OrbitControls(camera, canvas);
+// The environment's SH (given to the plugin either way), and the probe
+// that lights with it in 'probe' lighting.
 const probe = new THREE.LightProbe();
-scene.add(probe);
+const pmrem = new THREE.PMREMGenerator(renderer);
+let environmentTarget = null;
+let lighting = 'probe';
 const lightmaps = new AobakeLightmaps();
 const views = viewEvents();
 let model = null;
@@ -41,10 +47,46 @@ function render() {
   renderer.render(scene, camera);
 }
 
+/** A PMREM of `radiance` (a function of the world direction): an
+ * equirectangular float image in three's layout (u = atan2(z, x) / 2 pi +
+ * 1/2, v = asin(y) / pi + 1/2, row 0 at v = 0). */
+function environmentMap(radiance, width = 128, height = 64) {
+  // Half floats: linear filtering of float textures is optional in WebGL2
+  // (SwiftShader has none), and the PMREM filters the image linearly.
+  const data = new Uint16Array(width * height * 4);
+  const half = THREE.DataUtils.toHalfFloat;
+  for (let y = 0; y < height; y++) {
+    const lat = ((y + 0.5) / height - 0.5) * Math.PI;
+    for (let x = 0; x < width; x++) {
+      const phi = ((x + 0.5) / width - 0.5) * 2 * Math.PI;
+      const c = radiance(Math.cos(phi) * Math.cos(lat), Math.sin(lat), Math.sin(phi) * Math.cos(lat));
+      data.set([half(c[0]), half(c[1]), half(c[2]), half(1)], (y * width + x) * 4);
+    }
+  }
+  const image = new THREE.DataTexture(data, width, height, THREE.RGBAFormat, THREE.HalfFloatType);
+  image.mapping = THREE.EquirectangularReflectionMapping;
+  image.colorSpace = THREE.LinearSRGBColorSpace;
+  image.magFilter = THREE.LinearFilter;
+  image.needsUpdate = true;
+  const target = pmrem.fromEquirectangular(image);
+  image.dispose();
+  return target;
+}
+
 function applyEnvironment() {
-  const { coefficients } = environment();
+  const { radiance, coefficients } = environment();
   for (let i = 0; i < 9; i++) probe.sh.coefficients[i].fromArray(coefficients[i]);
   lightmaps.setEnvironment(probe.sh);
+  environmentTarget?.dispose();
+  environmentTarget = null;
+  scene.environment = null;
+  scene.remove(probe);
+  if (lighting === 'environment') {
+    environmentTarget = environmentMap(radiance);
+    scene.environment = environmentTarget.texture;
+  } else {
+    scene.add(probe);
+  }
   render();
 }
 
@@ -160,5 +202,14 @@ startPage('three', lightmaps, {
     onView: views.on,
     probe: probePixels,
     size: () => [canvas.width, canvas.height],
+    /** 'probe' (the default: a LightProbe of the SH alone, no specular) or
+     * 'environment' (an environment map of the radiance, as
+     * scene.environment: diffuse and specular). */
+    setLighting(name) {
+      if (name !== 'environment' && name !== 'probe') throw new Error(`unknown lighting ${name}`);
+      lighting = name;
+      applyEnvironment();
+      return lighting;
+    },
   },
 }, stage);

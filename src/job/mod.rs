@@ -23,17 +23,21 @@
 //! arrays are freed once it is encoded.
 //!
 //! - [`settings`]: what a bake is and how a run goes;
+//! - [`across`]: the seams across pages, solved together on the encoded
+//!   images before the write;
 //! - [`level`]: what every page shares ([`Level`]) and one page ([`Page`]);
 //! - [`page`](mod@page): a page's passes and output, and the write-back;
 //! - [`report`](mod@report): the `--report` JSON;
 //! - [`shard`](mod@shard): sharded bakes and their merge.
 
+pub mod across;
 pub mod level;
 pub mod page;
 pub mod report;
 pub mod settings;
 pub mod shard;
 
+pub use across::AcrossReport;
 pub use level::{Level, Page, page_seed};
 pub use page::{BakePasses, PageOutput, write};
 pub use report::{
@@ -54,7 +58,6 @@ use crate::gltf::{self, Scene};
 use crate::lightmap::BorderMode;
 use crate::lightmap::Lightmap;
 use crate::lightmap::border;
-use crate::lightmap::seams::across::{self, AcrossReport};
 use crate::stage::StageTimer;
 use std::path::Path;
 

@@ -4,6 +4,7 @@
 //! [`Report`] and its parts ([`level_report`]), serialized by the CLI's
 //! `--report`.
 
+use super::across::AcrossReport;
 use super::level::Level;
 use super::page::{BakePasses, PageOutput};
 use crate::bake::adaptive::{self, AdaptiveStats};
@@ -13,7 +14,6 @@ use crate::job::settings::{BakeSettings, Method};
 use crate::lightmap::BorderReport;
 use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
-use crate::lightmap::seams::across::AcrossReport;
 use crate::shard::Shard;
 use crate::stage::{StageTime, total};
 use serde::Serialize;
@@ -120,7 +120,7 @@ pub struct Report {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub border: Option<BorderReport>,
     /// The seams across pages, solved together once every page is encoded
-    /// ([`crate::lightmap::seams::across`]; bakes in one process).
+    /// ([`super::across`]; bakes in one process).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cross_page_seams: Option<AcrossReport>,
     /// The error an engine shows (`--engine-view-points`): bilinear lookups

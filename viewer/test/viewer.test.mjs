@@ -182,6 +182,8 @@ describe('directional environments relight as the decoded textures predict', () 
     const status = await pick(page, files.plane);
     assert.equal(status.baked, 1, status.message);
     await page.evaluate(() => window.aobakeViewer.view([1.2, 1.6, 1.5], [0, 0, 0]));
+    // Lit by a LightProbe of the environment's SH alone (the page's
+    // default; the next test covers an environment map).
     const { ext } = decoded(files.plane);
     for (const env of ['sky', 'sunset', 'lobe+x', 'lobe-y']) {
       const L = await page.evaluate((e) => window.aobakeViewer.setEnvironment(e, 30), env);
@@ -228,6 +230,61 @@ describe('directional environments relight as the decoded textures predict', () 
     for (let i = 0; i < 9; i++) {
       assert.ok(Math.abs(c[i] - A[i] * Y[i]) < 0.01, `c${i} = ${c[i]}, open ${A[i] * Y[i]}`);
     }
+    await page.close();
+  });
+
+  test('under an environment map the bake replaces its diffuse, once', async () => {
+    // A PMREM of the environment's radiance as scene.environment (the
+    // plugin's other kind of environment light). On the open plane the relit irradiance (the SH's)
+    // is three's own IBL irradiance (the PMREM's), up to the PMREM's
+    // filtering: the map's direction convention is right and the bake
+    // replaces the map's diffuse instead of adding to it.
+    const page = await open(browser, server.url);
+    const status = await pick(page, files.plane);
+    assert.equal(status.baked, 1, status.message);
+    await page.evaluate(() => window.aobakeViewer.view([1.2, 1.6, 1.5], [0, 0, 0]));
+    assert.equal(await page.evaluate(() => window.aobakeViewer.setLighting('environment')), 'environment');
+    for (const env of ['sky', 'lobe+x', 'lobe-x']) {
+      await page.evaluate((e) => window.aobakeViewer.setEnvironment(e, 30), env);
+      const pixels = await grid(page, 12);
+      const irr = await probe(page, 'irradiance', pixels);
+      const ibl = await probe(page, 'probe', pixels);
+      let n = 0;
+      let sum = 0;
+      let ref = 0;
+      for (let k = 0; k < pixels.length; k++) {
+        if (irr[k][3] !== 1) continue;
+        n++;
+        for (let ch = 0; ch < 3; ch++) {
+          sum += Math.abs(irr[k][ch] - ibl[k][ch]);
+          ref += ibl[k][ch];
+        }
+      }
+      assert.ok(n > 200, `${n} pixels on the plane`);
+      const relative = sum / ref;
+      console.log(`# plane ${env}, environment map: mean |SH relit - three's IBL irradiance| = ${(100 * relative).toFixed(2)}% of it over ${n} pixels`);
+      assert.ok(relative < 0.08, `${env}: ${relative}`);
+    }
+    // Shaded: with the bake replacing the map's diffuse, SH relighting of
+    // the open plane looks as three's own environment lighting ('off').
+    await page.evaluate(() => window.aobakeViewer.setEnvironment('sunset', 30));
+    const { PNG } = await import('pngjs');
+    const shot = async (mode) => {
+      await page.evaluate((m) => window.aobakeViewer.setMode(m), mode);
+      return PNG.sync.read(await page.locator('#view').screenshot()).data;
+    };
+    const [relit, plain] = [await shot('sh'), await shot('off')];
+    let sum = 0;
+    let count = 0;
+    for (let o = 0; o < relit.length; o += 4) {
+      if (relit[o] === plain[o] && relit[o + 1] === plain[o + 1] && relit[o + 2] === plain[o + 2]) continue;
+      for (let c = 0; c < 3; c++) sum += Math.abs(relit[o + c] - plain[o + c]) / 3;
+      count++;
+    }
+    const mean = sum / Math.max(1, count);
+    console.log(`# plane shaded under the environment map: ${count} pixels differ, by ${mean.toFixed(2)}/255 on average`);
+    assert.ok(mean < 4, `shaded difference ${mean}/255`);
+    assert.deepEqual(page.errors, []);
     await page.close();
   });
 });

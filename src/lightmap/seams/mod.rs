@@ -13,11 +13,9 @@
 //! 3. [`solve`]: least-squares stitching of the border and gutter texels
 //!    in the seams' bilinear footprints;
 //! 4. [`anchor`]: for seams whose sides lie on two pages, the target both
-//!    pages' sides are stitched to;
-//! 5. [`across`]: once every page is encoded, those seams' two sides
-//!    solved together on the written images.
+//!    pages' sides are stitched to (once every page is encoded, the job
+//!    solves those seams' two sides together: `crate::job::across`).
 
-pub mod across;
 pub mod anchor;
 pub mod find;
 pub mod metric;

@@ -6,28 +6,29 @@
 //! pages whose images changed, re-encoded with their own scale and offset
 //! (every other byte kept), and the jump before and after.
 //!
-//! Each page's stitch ([`super::stitch_page`]) pulled its side of a
-//! cross-page seam towards a target both pages trace ([`super::anchor`]):
+//! Each page's stitch ([`crate::lightmap::seams::stitch_page`]) pulled its
+//! side of a cross-page seam towards a target both pages trace
+//! ([`crate::lightmap::seams::anchor`]):
 //! a page cannot see the other's texels while it is baked (pages are baked
 //! one at a time, shards on other machines), and each side meets the
 //! target only as well as its own constraints let it (Sponza
 //! `--texel-density 28 --page-size 1024`: jump mean 0.0106 across pages
 //! against 0.0040 within one). Once every page is encoded, in one process
 //! or in `aobake merge`, this pass solves the two sides together: the
-//! within-page stitch's two-sided rows at [`POINTS_PER_TEXEL`] points per
+//! within-page stitch's two-sided rows at `POINTS_PER_TEXEL` points per
 //! texel of the longer side, over the non-interior texels under their
 //! lookups on both pages at once, each texel kept near its written value
 //! ([`System`]). It reads and writes 8-bit values only, so a merge of
 //! shards computes the same bytes as one process.
 
-use super::anchor::point_count;
-use super::find::CrossSeam;
-use super::interior;
-use super::metric::taps;
-use super::solve::{StitchStats, System};
 use crate::atlas::PageSize;
 use crate::encode::{Encoded, png};
 use crate::error::{Error, Result};
+use crate::lightmap::seams::anchor::point_count;
+use crate::lightmap::seams::find::CrossSeam;
+use crate::lightmap::seams::interior;
+use crate::lightmap::seams::metric::taps;
+use crate::lightmap::seams::solve::{StitchStats, System};
 use crate::sh::{K0, SH_COUNT, VIS_COUNT};
 use rayon::prelude::*;
 use serde::Serialize;
