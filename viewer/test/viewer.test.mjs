@@ -31,6 +31,17 @@ function grid(page, step) {
   });
 }
 
+/** Screenshots under 'sunset' with SH relighting and without baked light. */
+async function relitAndPlain(page) {
+  await page.evaluate(() => window.aobakeViewer.setEnvironment('sunset', 30));
+  const { PNG } = await import('pngjs');
+  const shot = async (mode) => {
+    await page.evaluate((m) => window.aobakeViewer.setMode(m), mode);
+    return PNG.sync.read(await page.locator('#view').screenshot()).data;
+  };
+  return [await shot('sh'), await shot('off')];
+}
+
 function probe(page, debug, pixels) {
   return page.evaluate(([d, p]) => window.aobakeViewer.probe(d, p), [debug, pixels]);
 }
@@ -210,13 +221,7 @@ describe('directional environments relight as the decoded textures predict', () 
     // Shaded, SH relighting of an open receiver is three's own probe
     // lighting ('off'): the pi of E = pi sum_i c_i L_i, the probe's
     // replacement and the albedo all agree.
-    await page.evaluate(() => window.aobakeViewer.setEnvironment('sunset', 30));
-    const { PNG } = await import('pngjs');
-    const shot = async (mode) => {
-      await page.evaluate((m) => window.aobakeViewer.setMode(m), mode);
-      return PNG.sync.read(await page.locator('#view').screenshot()).data;
-    };
-    const [relit, plain] = [await shot('sh'), await shot('off')];
+    const [relit, plain] = await relitAndPlain(page);
     let worstPixel = 0;
     for (let o = 0; o < relit.length; o++) worstPixel = Math.max(worstPixel, Math.abs(relit[o] - plain[o]));
     console.log(`# plane: shaded SH relighting against three's probe lighting, max difference ${worstPixel}/255`);
@@ -267,13 +272,7 @@ describe('directional environments relight as the decoded textures predict', () 
     }
     // Shaded: with the bake replacing the map's diffuse, SH relighting of
     // the open plane looks as three's own environment lighting ('off').
-    await page.evaluate(() => window.aobakeViewer.setEnvironment('sunset', 30));
-    const { PNG } = await import('pngjs');
-    const shot = async (mode) => {
-      await page.evaluate((m) => window.aobakeViewer.setMode(m), mode);
-      return PNG.sync.read(await page.locator('#view').screenshot()).data;
-    };
-    const [relit, plain] = [await shot('sh'), await shot('off')];
+    const [relit, plain] = await relitAndPlain(page);
     let sum = 0;
     let count = 0;
     for (let o = 0; o < relit.length; o += 4) {
