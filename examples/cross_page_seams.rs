@@ -63,10 +63,13 @@ fn main() {
         let p95 = jumps.get((0.95 * n) as usize).copied().unwrap_or(0.0);
         let over = jumps.iter().filter(|&&j| j > 8.0 / 255.0).count() as f64 / n;
         let stages = job.timer.into_merged_stages();
-        let seconds: f64 = (stages.iter())
-            .filter(|st| st.stage == "seams")
-            .map(|st| st.seconds)
-            .sum();
+        let seconds_of = |stage: &str| -> f64 {
+            (stages.iter())
+                .filter(|st| st.stage == stage)
+                .map(|st| st.seconds)
+                .sum()
+        };
+        let seconds = seconds_of("seams");
         println!(
             "| {mode:?} | {} | {} | {mean:.4} | {p95:.4} | {:.1}% | {seconds:.2} |",
             seams.len(),
@@ -74,10 +77,7 @@ fn main() {
             100.0 * over
         );
         if let Some(a) = across {
-            let pass: f64 = (stages.iter())
-                .filter(|st| st.stage == "cross-page seams")
-                .map(|st| st.seconds)
-                .sum();
+            let pass = seconds_of("cross-page seams");
             println!(
                 "| {mode:?}, 8-bit, before the pass across pages | {} | {} | {:.4} | {:.4} | | |",
                 a.seams, a.points, a.ao_before, a.p95_before

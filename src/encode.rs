@@ -69,6 +69,30 @@ fn to_u8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
+/// The byte a coefficient is written as: `(v - offset) / scale` on [0,
+/// 255], clamped; 0 for a channel whose range is empty (`scale` 0).
+#[inline]
+pub fn to_byte(v: f32, scale: f32, offset: f32) -> u8 {
+    if scale > 0.0 {
+        to_u8((v - offset) / scale)
+    } else {
+        0
+    }
+}
+
+/// The value a byte is read as: `scale x q / 255 + offset` (the contract's
+/// decoding; AO is scale 1, offset 0).
+#[inline]
+pub fn from_byte(q: u8, scale: f32, offset: f32) -> f32 {
+    scale * (q as f32 / 255.0) + offset
+}
+
+/// One of the encoded PNGs, decoded.
+pub fn read_png(png: &[u8]) -> Result<image::DynamicImage> {
+    image::load_from_memory_with_format(png, image::ImageFormat::Png)
+        .map_err(|err| Error::Encode(format!("an encoded PNG does not decode: {err}")))
+}
+
 /// Scale and offset mapping each coefficient's range onto [0, 1].
 pub fn sh_range<const N: usize>(sh: &[[f32; N]]) -> ([f32; N], [f32; N]) {
     let mut lo = [f32::INFINITY; N];
@@ -99,13 +123,7 @@ fn rgba_channels<const N: usize>(
     count: usize,
 ) -> (Vec<Vec<u8>>, [f32; N], [f32; N]) {
     let (scale, offset) = sh_range(values);
-    let channel = |c: &[f32; N], i: usize| -> u8 {
-        if scale[i] > 0.0 {
-            to_u8((c[i] - offset[i]) / scale[i])
-        } else {
-            0
-        }
-    };
+    let channel = |c: &[f32; N], i: usize| to_byte(c[i], scale[i], offset[i]);
     let pages = (0..count.div_ceil(4))
         .into_par_iter()
         .map(|p| {
@@ -179,10 +197,7 @@ pub fn encode(lm: &Lightmap, visibility_order: u32) -> Result<Encoded> {
 /// channel_i / 255 + offset_i`, AO = channel / 255). The inverse of
 /// [`encode`] up to 8-bit quantization; `covered` is left empty.
 pub fn decode(e: &Encoded) -> Result<Lightmap> {
-    let read = |png: &[u8]| -> Result<image::DynamicImage> {
-        image::load_from_memory_with_format(png, image::ImageFormat::Png)
-            .map_err(|err| Error::Encode(format!("an encoded PNG does not decode: {err}")))
-    };
+    let read = read_png;
     let ao = read(&e.occlusion_png)?.into_luma8();
     let (width, height) = ao.dimensions();
     let sh_images = e
@@ -191,11 +206,14 @@ pub fn decode(e: &Encoded) -> Result<Lightmap> {
         .map(|p| Ok(read(p)?.into_rgba8().into_raw()))
         .collect::<Result<Vec<_>>>()?;
     let n = (width * height) as usize;
-    let unit = |b: u8| b as f32 / 255.0;
     let sh = (0..n)
         .map(|t| {
             std::array::from_fn(|i| {
-                e.sh_scale[i] * unit(sh_images[i / 4][t * 4 + i % 4]) + e.sh_offset[i]
+                from_byte(
+                    sh_images[i / 4][t * 4 + i % 4],
+                    e.sh_scale[i],
+                    e.sh_offset[i],
+                )
             })
         })
         .collect();
@@ -208,7 +226,7 @@ pub fn decode(e: &Encoded) -> Result<Lightmap> {
                 (0..n)
                     .map(|t| {
                         std::array::from_fn(|i| match v.scale.get(i) {
-                            Some(&s) => s * unit(images[i / 4][t * 4 + i % 4]) + v.offset[i],
+                            Some(&s) => from_byte(images[i / 4][t * 4 + i % 4], s, v.offset[i]),
                             None => 0.0,
                         })
                     })
@@ -220,7 +238,11 @@ pub fn decode(e: &Encoded) -> Result<Lightmap> {
     Ok(Lightmap {
         width,
         height,
-        ao: ao.into_raw().into_iter().map(unit).collect(),
+        ao: ao
+            .into_raw()
+            .into_iter()
+            .map(|q| from_byte(q, 1.0, 0.0))
+            .collect(),
         sh,
         covered: Vec::new(),
         visibility,

@@ -499,11 +499,9 @@ fn seams_across_pages_are_stitched_to_a_shared_target_then_together() {
 /// one-process report says what the pass did.
 #[test]
 fn a_merge_solves_the_seams_across_pages_as_one_process_does() {
-    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets/sponza_dabrovic.glb");
-    if !input.exists() {
-        eprintln!("skipped: {} is missing", input.display());
+    let Some(input) = common::shared_path("sponza_dabrovic.glb") else {
         return;
-    }
+    };
     let input = input.to_str().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let args = |out: &str| -> Vec<String> {

@@ -348,6 +348,20 @@ export function patchMaterial(material, lightmaps, textures, ext) {
       .replace(
         '#include <lights_fragment_maps>',
         /* glsl */ `#include <lights_fragment_maps>
+// The environment's own unoccluded irradiance at a normal, the light the
+// bake replaces, and the sum it is in: the material's environment map's
+// (scene.environment or envMap; iblIrradiance, which three's multiple
+// scattering also reads), else the LightProbe's, else none.
+#if defined( USE_ENVMAP ) && defined( STANDARD ) && defined( ENVMAP_TYPE_PMREM )
+#define AOBAKE_ENVIRONMENT(n) getIBLIrradiance(n)
+#define AOBAKE_ENVIRONMENT_SUM iblIrradiance
+#elif defined( USE_LIGHT_PROBES )
+#define AOBAKE_ENVIRONMENT(n) getLightProbeIrradiance(lightProbe, n)
+#define AOBAKE_ENVIRONMENT_SUM irradiance
+#else
+#define AOBAKE_ENVIRONMENT(n) vec3(0.0)
+#define AOBAKE_ENVIRONMENT_SUM irradiance
+#endif
 #if defined( RE_IndirectDiffuse )
   if (aobakeMode == 2) {
     // The bake replaces the environment's unoccluded diffuse light: three's
@@ -361,18 +375,8 @@ export function patchMaterial(material, lightmaps, textures, ext) {
 #else
     vec3 aobakeE = PI * aobakeIrradiance();
 #endif
-#if defined( USE_ENVMAP ) && defined( STANDARD ) && defined( ENVMAP_TYPE_PMREM )
-    // The environment is the material's environment map (scene.environment
-    // or envMap): its diffuse (iblIrradiance, which three's multiple
-    // scattering also reads) is replaced; a LightProbe adds as it would.
-    iblIrradiance += aobakeE - getIBLIrradiance(geometryNormal);
-#elif defined( USE_LIGHT_PROBES )
-    // The environment is the LightProbe.
-    irradiance += aobakeE - getLightProbeIrradiance(lightProbe, geometryNormal);
-#else
-    // No environment light in the scene: the bake's is the only one.
-    irradiance += aobakeE;
-#endif
+    // (Under an environment map, a LightProbe still adds as it would.)
+    AOBAKE_ENVIRONMENT_SUM += aobakeE - AOBAKE_ENVIRONMENT(geometryNormal);
   }
 #endif
 #if defined( RE_IndirectSpecular ) && defined( USE_ENVMAP )
@@ -396,13 +400,7 @@ export function patchMaterial(material, lightmaps, textures, ext) {
   if (aobakeDebug == 1) gl_FragColor = vec4(aobakeIrradiance(), 1.0);
   else if (aobakeDebug == 2) gl_FragColor = vec4(vec3(texture2D(aobakeAoTex, vAobakeUv).r), 1.0);
   else if (aobakeDebug == 3) gl_FragColor = vec4(vAobakeUv, 0.0, 1.0);
-#if defined( USE_ENVMAP ) && defined( STANDARD ) && defined( ENVMAP_TYPE_PMREM )
-  else if (aobakeDebug == 4) gl_FragColor = vec4(getIBLIrradiance(geometryNormal) / PI, 1.0);
-#elif defined( USE_LIGHT_PROBES )
-  else if (aobakeDebug == 4) gl_FragColor = vec4(getLightProbeIrradiance(lightProbe, geometryNormal) / PI, 1.0);
-#else
-  else if (aobakeDebug == 4) gl_FragColor = vec4(0.0, 0.0, 0.0, 1.0);
-#endif
+  else if (aobakeDebug == 4) gl_FragColor = vec4(AOBAKE_ENVIRONMENT(geometryNormal) / PI, 1.0);
 #ifdef AOBAKE_VISIBILITY
   else if (aobakeDebug == 5) gl_FragColor = vec4(aobakeMappedIrradiance(
     transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),

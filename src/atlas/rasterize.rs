@@ -279,6 +279,27 @@ pub fn rasterize(meshes: &[ReceiverMesh], atlas: &Atlas) -> Receivers {
     out
 }
 
+/// The texels whose centres may lie within [`CONSERVATIVE_REACH`] of a
+/// triangle with UVs `uv` (texels), on a `w` x `h` page: x and y ranges,
+/// inclusive.
+fn reach_box(uv: &[Vec2; 3], w: u32, h: u32) -> ([u32; 2], [u32; 2]) {
+    let lo = uv.iter().fold(Vec2::INFINITY, |a, &p| a.min(p)) - CONSERVATIVE_REACH;
+    let hi = uv.iter().fold(Vec2::NEG_INFINITY, |a, &p| a.max(p)) + CONSERVATIVE_REACH;
+    let x = [lo.x, hi.x.ceil()].map(|v| (v.floor().max(0.0) as u32).min(w - 1));
+    let y = [lo.y, hi.y.ceil()].map(|v| (v.floor().max(0.0) as u32).min(h - 1));
+    (x, y)
+}
+
+/// The barycentrics of the point of triangle `t` nearest `p` and the
+/// squared distance to it (0 inside, edges included).
+fn nearest(p: Vec2, t: &[Vec2; 3]) -> ([f32; 3], f32) {
+    if inside(p, t) {
+        (closest_point_barycentric(p, t[0], t[1], t[2]).0, 0.0)
+    } else {
+        closest_point_barycentric(p, t[0], t[1], t[2])
+    }
+}
+
 /// Which texels of `atlas` (one page's) are covered, the texels
 /// [`rasterize`] gives a receiver (a centre within its conservative reach
 /// of a triangle), decided only where `needed` is true (false elsewhere):
@@ -288,12 +309,7 @@ pub fn covered(meshes: &[ReceiverMesh], atlas: &Atlas, needed: &[bool]) -> Vec<b
     let mut out = vec![false; needed.len()];
     let reach2 = CONSERVATIVE_REACH * CONSERVATIVE_REACH;
     for t in surface_triangles(meshes, atlas) {
-        let lo = t.uv.iter().fold(Vec2::INFINITY, |a, &p| a.min(p)) - CONSERVATIVE_REACH;
-        let hi = t.uv.iter().fold(Vec2::NEG_INFINITY, |a, &p| a.max(p)) + CONSERVATIVE_REACH;
-        let xa = (lo.x.floor().max(0.0) as u32).min(w - 1);
-        let xb = (hi.x.ceil().max(0.0) as u32).min(w - 1);
-        let ya = (lo.y.floor().max(0.0) as u32).min(h - 1);
-        let yb = (hi.y.ceil().max(0.0) as u32).min(h - 1);
+        let ([xa, xb], [ya, yb]) = reach_box(&t.uv, w, h);
         for y in ya..=yb {
             for x in xa..=xb {
                 let i = (y * w + x) as usize;
@@ -301,8 +317,7 @@ pub fn covered(meshes: &[ReceiverMesh], atlas: &Atlas, needed: &[bool]) -> Vec<b
                     continue;
                 }
                 let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                out[i] = inside(p, &t.uv)
-                    || closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2]).1 <= reach2;
+                out[i] = nearest(p, &t.uv).1 <= reach2;
             }
         }
     }
@@ -320,21 +335,12 @@ fn rasterize_band(tris: &[SurfaceTri], list: &[u32], band: u32, w: u32, h: u32) 
     let mut out = Receivers::default();
     for &ti in list {
         let t = &tris[ti as usize];
-        let lo = t.uv.iter().fold(Vec2::INFINITY, |a, &p| a.min(p)) - CONSERVATIVE_REACH;
-        let hi = t.uv.iter().fold(Vec2::NEG_INFINITY, |a, &p| a.max(p)) + CONSERVATIVE_REACH;
-        let xa = (lo.x.floor().max(0.0) as u32).min(w - 1);
-        let xb = (hi.x.ceil().max(0.0) as u32).min(w - 1);
-        let ya = (lo.y.floor().max(y0 as f32) as u32).clamp(y0, y1 - 1);
-        let yb = (hi.y.ceil().max(0.0) as u32).clamp(y0, y1 - 1);
+        let ([xa, xb], y) = reach_box(&t.uv, w, h);
+        let [ya, yb] = y.map(|y| y.clamp(y0, y1 - 1));
         for y in ya..=yb {
             for x in xa..=xb {
                 let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let (bary, d2) = if inside(p, &t.uv) {
-                    let (b, _) = closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2]);
-                    (b, 0.0)
-                } else {
-                    closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2])
-                };
+                let (bary, d2) = nearest(p, &t.uv);
                 let slot = &mut best[(y - y0) as usize * w as usize + x as usize];
                 if d2 == 0.0 && slot.0 == 0.0 && tris[slot.1 as usize].mesh != t.mesh {
                     out.overlapping_texels += 1;

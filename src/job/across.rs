@@ -22,8 +22,8 @@
 //! shards computes the same bytes as one process.
 
 use crate::atlas::PageSize;
-use crate::encode::{Encoded, png};
-use crate::error::{Error, Result};
+use crate::encode::{Encoded, from_byte, png, read_png, to_byte};
+use crate::error::Result;
 use crate::lightmap::seams::anchor::point_count;
 use crate::lightmap::seams::find::CrossSeam;
 use crate::lightmap::seams::interior;
@@ -64,12 +64,8 @@ struct Raw {
 }
 
 fn read(e: &Encoded) -> Result<Raw> {
-    let decode = |png: &[u8]| {
-        image::load_from_memory_with_format(png, image::ImageFormat::Png)
-            .map_err(|err| Error::Encode(format!("an encoded PNG does not decode: {err}")))
-    };
-    let ao = decode(&e.occlusion_png)?.into_luma8();
-    let rgba = |p: &Vec<u8>| Ok(decode(p)?.into_rgba8().into_raw());
+    let ao = read_png(&e.occlusion_png)?.into_luma8();
+    let rgba = |p: &Vec<u8>| Ok(read_png(p)?.into_rgba8().into_raw());
     Ok(Raw {
         width: ao.width(),
         ao: ao.into_raw(),
@@ -98,30 +94,33 @@ fn range(e: &Encoded, c: usize) -> (f32, f32) {
     }
 }
 
+/// Where channel `c` lies: its image (0 AO, 1..=3 the SH's, 4.. the
+/// layer's) and its byte in a pixel.
+fn slot(c: usize) -> (usize, usize) {
+    match c {
+        0 => (0, 0),
+        c if c <= SH_COUNT => (1 + (c - 1) / 4, (c - 1) % 4),
+        c => (4 + (c - 1 - SH_COUNT) / 4, (c - 1 - SH_COUNT) % 4),
+    }
+}
+
 /// Channel `c`'s byte at texel `t`.
 fn byte(raw: &mut Raw, c: usize, t: usize) -> &mut u8 {
-    match c {
-        0 => &mut raw.ao[t],
-        c if c <= SH_COUNT => &mut raw.sh[(c - 1) / 4][t * 4 + (c - 1) % 4],
-        c => {
-            let i = c - 1 - SH_COUNT;
-            &mut raw.vis[i / 4][t * 4 + i % 4]
-        }
+    match slot(c) {
+        (0, _) => &mut raw.ao[t],
+        (i @ 1..=3, k) => &mut raw.sh[i - 1][t * 4 + k],
+        (i, k) => &mut raw.vis[i - 4][t * 4 + k],
     }
 }
 
-/// The value a byte decodes to (the contract's `scale x q / 255 + offset`).
+/// The value a byte decodes to ([`from_byte`], the channel's range).
 fn decoded(q: u8, (scale, offset): (f32, f32)) -> f32 {
-    scale * (q as f32 / 255.0) + offset
+    from_byte(q, scale, offset)
 }
 
-/// The byte nearest `v`, within the channel's range.
+/// The byte nearest `v` within the channel's range ([`to_byte`]).
 fn quantized(v: f32, (scale, offset): (f32, f32)) -> u8 {
-    if scale > 0.0 {
-        (((v - offset) / scale).clamp(0.0, 1.0) * 255.0).round() as u8
-    } else {
-        0
-    }
+    to_byte(v, scale, offset)
 }
 
 /// One point of a seam: each side's taps as (texel id, weight).
@@ -275,9 +274,9 @@ pub fn close(
         let (page, t) = key[id as usize];
         let e = encoded[page as usize];
         let new = &solved[k * c..(k + 1) * c];
+        // (Every byte is clamped to its channel's range by `quantized`.)
         let ao = new[0].clamp(0.0, 1.0);
-        let mut sh0 = new[1] + K0 as f32 * (ao - new[0]);
-        sh0 = sh0.clamp(range(e, 1).1, range(e, 1).1 + range(e, 1).0);
+        let sh0 = new[1] + K0 as f32 * (ao - new[0]);
         let bytes = std::iter::once(ao)
             .chain(std::iter::once(sh0))
             .chain(new[2..].iter().copied())
@@ -310,8 +309,9 @@ pub fn close(
     };
     (report.ao_before, report.p95_before) = jumps(&|id| value[id as usize * CHANNELS]);
     (report.ao_after, report.p95_after) = jumps(&|id| after_ao[id as usize]);
-    // Each page that moved: its images again, the moved bytes written,
-    // the images that changed re-encoded.
+    // Each page that moved: its images decoded again (rather than kept
+    // from the first read: only one page's images at a time per thread),
+    // the moved bytes written, the images that changed re-encoded.
     let rewritten: Vec<Option<Encoded>> = moved
         .par_iter()
         .enumerate()
@@ -327,11 +327,7 @@ pub fn close(
                 let b = byte(&mut raw, ch, t as usize);
                 if *b != q {
                     *b = q;
-                    changed[match ch {
-                        0 => 0,
-                        c if c <= SH_COUNT => 1 + (c - 1) / 4,
-                        c => 4 + (c - 1 - SH_COUNT) / 4,
-                    }] = true;
+                    changed[slot(ch).0] = true;
                 }
             }
             if !changed.iter().any(|&c| c) {

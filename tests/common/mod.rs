@@ -255,6 +255,12 @@ pub fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::BakeSettings) -> aobake
 /// The scene `name` of the shared test assets (`../shared/assets`), or
 /// None (with a note) where they are not checked out: the test skips.
 pub fn shared_scene(name: &str) -> Option<aobake::gltf::Scene> {
+    shared_path(name).map(|path| aobake::gltf::load(&path).unwrap())
+}
+
+/// The path of the shared test asset `name`, or None (with a note) where
+/// the assets are not checked out: the test skips.
+pub fn shared_path(name: &str) -> Option<std::path::PathBuf> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../shared/assets")
         .join(name);
@@ -262,7 +268,7 @@ pub fn shared_scene(name: &str) -> Option<aobake::gltf::Scene> {
         eprintln!("skipped: {} is missing", path.display());
         return None;
     }
-    Some(aobake::gltf::load(&path).unwrap())
+    Some(path)
 }
 
 /// A key of the receivers' order (FNV-1a over their texels), for caches
