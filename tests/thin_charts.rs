@@ -2,28 +2,67 @@
 //! default `min_chart_width` a strip far narrower than a texel gets a chart
 //! two texels across, so every lookup on it reads at least one texel whose
 //! centre lies on the strip (no sliver-class point); with 0 it keeps its
-//! shape and most of its lookups read only texels of its edges.
+//! shape and most of its lookups read only texels of its edges. A strip
+//! that bends (an L) is cut into straight pieces first, so the same holds.
 
 mod common;
 
 use aobake::job::{Level, RunOptions};
 use aobake::lightmap::engine_view::{self, TexelClass};
 use aobake::stage::StageTimer;
-use common::{glb, plain_nodes, quad, scene, settings};
+use common::{MeshSpec, glb, plain_nodes, quad, scene, settings};
 
 /// A 2 x 0.01 strip beside a 2 x 2 floor: at 64 texels the floor sets
 /// the density (~25 texels per unit), so the strip is ~0.25 texels wide.
 fn strip_and_floor() -> aobake::gltf::Scene {
     let strip = quad([0.0, 3.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.005, 0.0], true);
+    with_floor(strip)
+}
+
+/// The strip's scene with a 2 x 2 floor beside it (mesh 1).
+fn with_floor(strip: MeshSpec) -> aobake::gltf::Scene {
     let floor = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
     scene(&glb(&[strip, floor], plain_nodes(2)))
+}
+
+/// A planar band 0.01 wide bent in an L (two legs of 2 along x, then y),
+/// in quads of 0.25: one chart whose bounding rectangle is 2 x 2.
+fn bent_strip_and_floor() -> aobake::gltf::Scene {
+    let half = 0.005;
+    let mut positions = Vec::new();
+    for i in 0..=8 {
+        let x = 0.25 * i as f32;
+        let (ix, ox) = if i == 8 { (x - half, x + half) } else { (x, x) };
+        positions.push([ix, 3.0 + half, 0.0]);
+        positions.push([ox, 3.0 - half, 0.0]);
+    }
+    for i in 1..=8 {
+        let y = 3.0 + 0.25 * i as f32;
+        positions.push([2.0 - half, y, 0.0]);
+        positions.push([2.0 + half, y, 0.0]);
+    }
+    let mut indices = Vec::new();
+    for q in 0..16u32 {
+        let (a, b, c, d) = (2 * q, 2 * q + 1, 2 * q + 2, 2 * q + 3);
+        // Counter-clockwise seen from +z on both legs and at the corner.
+        indices.extend([b, d, c, b, c, a]);
+    }
+    let normals = Some(vec![[0.0, 0.0, 1.0]; positions.len()]);
+    with_floor(MeshSpec {
+        positions,
+        normals,
+        indices,
+    })
 }
 
 /// The strip's chart: its narrower UV extent in texels, and the share of
 /// 2000 points uniform on it whose four bilinear taps all lie outside
 /// every triangle (the engine view's sliver class).
 fn strip_chart(min_chart_width: f32) -> (f32, f64) {
-    let sc = strip_and_floor();
+    chart_of(strip_and_floor(), min_chart_width)
+}
+
+fn chart_of(sc: aobake::gltf::Scene, min_chart_width: f32) -> (f32, f64) {
     let s = aobake::BakeSettings {
         min_chart_width,
         ..settings(64, 16, None)
@@ -71,6 +110,24 @@ fn a_strip_thinner_than_a_texel_gets_two_texels_of_its_own() {
     assert!(
         (1.9..=2.1).contains(&width),
         "stretched strip {width} texels wide"
+    );
+    assert_eq!(slivers, 0.0);
+}
+
+#[test]
+fn a_bent_strip_is_cut_into_straight_pieces_of_two_texels() {
+    let (width, slivers) = chart_of(bent_strip_and_floor(), 0.0);
+    assert!(
+        width > 20.0,
+        "the L's bounding box is {width} texels across"
+    );
+    assert!(
+        slivers > 0.5,
+        "unstretched: {slivers} of the points are slivers"
+    );
+    let (_, slivers) = chart_of(
+        bent_strip_and_floor(),
+        aobake::BakeSettings::DEFAULT.min_chart_width,
     );
     assert_eq!(slivers, 0.0);
 }

@@ -115,8 +115,9 @@ pub struct BakeSettings {
     #[arg(long, value_name = "P", default_value_t = Self::DEFAULT.padding)]
     pub padding: u32,
     /// Smallest chart width in texels: a generated chart narrower than this
-    /// across its bounding rectangle is stretched to it, so that bilinear
-    /// lookups on it read texels of its own (0: charts keep their shape)
+    /// across its bounding rectangle is stretched to it (a strip that bends
+    /// is first cut into straight pieces), so that bilinear lookups on it
+    /// read texels of its own (0: charts keep their shape)
     #[arg(long, value_name = "W", default_value_t = Self::DEFAULT.min_chart_width)]
     #[serde(default)]
     pub min_chart_width: f32,

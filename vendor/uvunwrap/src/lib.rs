@@ -67,6 +67,7 @@ mod progress;
 mod raster;
 mod segment;
 mod solver;
+mod strip;
 mod tile;
 mod topology;
 mod validate;

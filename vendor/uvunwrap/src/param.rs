@@ -735,7 +735,7 @@ fn split(topo: &Topology, faces: &[u32], seeds: Option<(u32, u32)>) -> (Vec<u32>
 
 /// Scales the chart to match its 3D area, rotates it to its minimum-area
 /// bounding rectangle and moves it to the origin.
-fn finalize(
+pub(crate) fn finalize(
     topo: &Topology,
     faces: Vec<u32>,
     verts: Vec<u32>,

@@ -7,7 +7,7 @@ use crate::geom::V2;
 use crate::progress::{self, Ctx};
 use crate::topology::{Topology, NONE};
 use crate::{
-    pack, par, param, raster, segment, tile, validate, Atlas, Density, Error, InstanceRect,
+    pack, par, param, raster, segment, strip, tile, validate, Atlas, Density, Error, InstanceRect,
     MeshInput, Options, OutputMesh, OutputVertex,
 };
 use std::collections::HashMap;
@@ -161,6 +161,22 @@ fn widen_thin_charts(
         Density::Auto { .. } => pack_meshes(meshes, unwrapped, options, ctx)?.1.texels_per_unit,
     };
     let min = options.min_chart_width as f64;
+    for u in unwrapped.iter_mut() {
+        let topo = &u.topo;
+        let charts = std::mem::take(&mut u.charts);
+        u.charts = charts
+            .into_iter()
+            .flat_map(|chart| {
+                if strip::is_bent_strip(&chart, density, min) {
+                    strip::split(chart, 0.5 * min / density, |faces, verts, local, uvs| {
+                        param::finalize(topo, faces, verts, local, uvs)
+                    })
+                } else {
+                    vec![chart]
+                }
+            })
+            .collect();
+    }
     for chart in unwrapped.iter_mut().flat_map(|u| u.charts.iter_mut()) {
         let k = stretch(chart.size, density, min);
         for p in chart.uvs.iter_mut() {
