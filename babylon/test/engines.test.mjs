@@ -78,20 +78,45 @@ async function compare(pages, debug, pixels) {
   return { n, mean: sum / Math.max(1, n), over: over / Math.max(1, n), onlyOne, mask: a.map((p, k) => p[3] >= 1 && b[k][3] >= 1) };
 }
 
-/** Mean |three - Babylon| of the two canvases (8-bit sRGB) over `mask`. */
-async function beauty(pages, pixels, mask) {
+/** Both canvases as decoded 8-bit sRGB PNGs ([three, Babylon]). */
+async function frames(pages) {
   // A software renderer can take long to draw a frame on a loaded machine.
-  const shots = await Promise.all(pages.map(async (p) => PNG.sync.read(await p.locator('#view').screenshot({ timeout: 300000 }))));
+  return Promise.all(pages.map(async (p) => PNG.sync.read(await p.locator('#view').screenshot({ timeout: 300000 }))));
+}
+
+/**
+ * Mean over the pixels of `mask` and the RGB channels of |d(o)|, in 8-bit
+ * steps, where d(o) is a difference of the frames' bytes at offset o.
+ */
+function meanOver(pixels, mask, width, d) {
   let n = 0;
   let sum = 0;
   for (let k = 0; k < pixels.length; k++) {
     if (!mask[k]) continue;
     const [x, y] = pixels[k];
-    const o = (y * shots[0].width + x) * 4;
-    for (let c = 0; c < 3; c++) sum += Math.abs(shots[0].data[o + c] - shots[1].data[o + c]) / 3;
+    const o = (y * width + x) * 4;
+    for (let c = 0; c < 3; c++) sum += Math.abs(d(o + c)) / 3;
     n++;
   }
   return sum / Math.max(1, n);
+}
+
+/**
+ * The beauty frames of both engines with the baked light ('sh') and
+ * without it ('off'), on the pixels of `mask`: |three - Babylon| with the
+ * bake, and the same without it (each engine's own shading of the
+ * environment, diffuse included, which the importers do not touch).
+ */
+async function beauty(pages, pixels, mask) {
+  const [w3, wb] = await frames(pages);
+  for (const p of pages) await p.evaluate(() => window.aobakeViewer.setMode('off'));
+  const [o3, ob] = await frames(pages);
+  for (const p of pages) await p.evaluate(() => window.aobakeViewer.setMode('sh'));
+  const at = (d) => meanOver(pixels, mask, w3.width, d);
+  return {
+    baked: at((o) => w3.data[o] - wb.data[o]),
+    engines: at((o) => o3.data[o] - ob.data[o]),
+  };
 }
 
 async function sameBakeTwoEngines(name, debugs) {
@@ -121,13 +146,16 @@ async function sameBakeTwoEngines(name, debugs) {
     }
     // Measured and printed, not asserted (the engines' BRDFs differ). The
     // three.js page lit by an environment map of the same radiance, as
-    // Babylon's is (diffuse and specular).
+    // Babylon's is (diffuse and specular); then the same frames without the
+    // baked light: how far apart the engines are on their own.
     await pages[0].evaluate(() => window.aobakeViewer.setLighting('environment'));
     const b = await beauty(pages, pixels, results[debugs[0]].mask).catch((e) => {
       console.log(`# ${name} beauty frames not measured: ${e.message.split('\n')[0]}`);
-      return NaN;
+      return null;
     });
-    if (!Number.isNaN(b)) console.log(`# ${name} beauty frames (SH relighting, sky): mean |three - Babylon| = ${b.toFixed(2)}/255 on baked surfaces (both lit by the environment's map; what differs is each engine's BRDF and prefiltering)`);
+    if (b) {
+      console.log(`# ${name} beauty frames (sky, both lit by the environment's map), mean |three - Babylon| on baked surfaces: with the baked light ${b.baked.toFixed(2)}/255; without it (each engine's own diffuse and specular light) ${b.engines.toFixed(2)}/255`);
+    }
     for (const p of pages) {
       assert.deepEqual(p.errors, []);
       await p.close();
