@@ -485,7 +485,10 @@ fn seams_across_pages_are_stitched_to_a_shared_target_then_together() {
         (off_written - off).abs() < 0.01,
         "{off} against {off_written}"
     );
-    assert!(stitched < 0.4 * off, "{off} -> {stitched}");
+    // Each page alone closes its side part of the way (0.398x of the open
+    // jump before bent strips were cut into pieces, 0.404x after: more,
+    // shorter seams); the pass below is what closes them.
+    assert!(stitched < 0.45 * off, "{off} -> {stitched}");
     // Solved together: within the 8-bit steps (1/255 = 0.0039) of a
     // closed seam, and well below the one-sided stitch.
     assert!(
