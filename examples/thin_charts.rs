@@ -22,6 +22,7 @@
 
 use aobake::atlas::AtlasSize;
 use aobake::job::{BakeSettings, Level, RunOptions};
+use aobake::lightmap::engine_view::{self, TexelClass};
 use aobake::stage::StageTimer;
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
@@ -121,32 +122,12 @@ fn main() {
         }
     }
     widening_cost(path, resolution, min_width, &charts);
-    // Texel centres inside a triangle.
-    let mut inside = vec![false; w * h];
-    let contains = |t: &[Vec2; 3], p: Vec2| {
-        let d = (t[1] - t[0]).perp_dot(t[2] - t[0]);
-        if d.abs() < 1e-12 {
-            return false;
-        }
-        let b1 = (p - t[0]).perp_dot(t[2] - t[0]) / d;
-        let b2 = (t[1] - t[0]).perp_dot(p - t[0]) / d;
-        b1 >= 0.0 && b2 >= 0.0 && b1 + b2 <= 1.0
-    };
-    for (_, t, _) in &tris {
-        let lo = t.iter().fold(Vec2::splat(f32::MAX), |a, p| a.min(*p));
-        let hi = t.iter().fold(Vec2::splat(f32::MIN), |a, p| a.max(*p));
-        for y in (lo.y - 0.5).floor().max(0.0) as usize
-            ..=((hi.y - 0.5).ceil().max(0.0) as usize).min(h - 1)
-        {
-            for x in (lo.x - 0.5).floor().max(0.0) as usize
-                ..=((hi.x - 0.5).ceil().max(0.0) as usize).min(w - 1)
-            {
-                if contains(t, Vec2::new(x as f32 + 0.5, y as f32 + 0.5)) {
-                    inside[y * w + x] = true;
-                }
-            }
-        }
-    }
+    // Which texel centres lie inside a triangle: the rasterizer's, as the
+    // engine view classifies.
+    let page = level
+        .page(0, &scene, &s, &mut StageTimer::new())
+        .expect("page");
+    let inside = engine_view::centers_inside(&page.receivers);
     let total: f64 = tris.iter().map(|t| t.2).sum();
     let mut rng = 0x9e3779b97f4a7c15u64;
     let mut next = || {
@@ -168,15 +149,10 @@ fn main() {
                 (r1, r2) = (1.0 - r1, 1.0 - r2);
             }
             let p = t[0] + (t[1] - t[0]) * r1 + (t[2] - t[0]) * r2;
-            let x0 = ((p.x - 0.5).floor() as i64).clamp(0, w as i64 - 1) as usize;
-            let y0 = ((p.y - 0.5).floor() as i64).clamp(0, h as i64 - 1) as usize;
-            let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-            let any = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)]
-                .iter()
-                .any(|&(x, y)| inside[y * w + x]);
+            let uv = [p.x / w as f32, p.y / h as f32];
             all += 1;
             charts[*c].points += 1;
-            if !any {
+            if engine_view::class_of(uv, w as u32, h as u32, &inside) == TexelClass::Sliver {
                 sliver += 1;
                 charts[*c].sliver += 1;
             }

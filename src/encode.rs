@@ -197,13 +197,12 @@ pub fn encode(lm: &Lightmap, visibility_order: u32) -> Result<Encoded> {
 /// channel_i / 255 + offset_i`, AO = channel / 255). The inverse of
 /// [`encode`] up to 8-bit quantization; `covered` is left empty.
 pub fn decode(e: &Encoded) -> Result<Lightmap> {
-    let read = read_png;
-    let ao = read(&e.occlusion_png)?.into_luma8();
+    let ao = read_png(&e.occlusion_png)?.into_luma8();
     let (width, height) = ao.dimensions();
     let sh_images = e
         .sh_png
         .iter()
-        .map(|p| Ok(read(p)?.into_rgba8().into_raw()))
+        .map(|p| Ok(read_png(p)?.into_rgba8().into_raw()))
         .collect::<Result<Vec<_>>>()?;
     let n = (width * height) as usize;
     let sh = (0..n)
@@ -220,7 +219,7 @@ pub fn decode(e: &Encoded) -> Result<Lightmap> {
     let visibility = match &e.visibility {
         Some(v) => {
             let images = (v.png.iter())
-                .map(|p| Ok(read(p)?.into_rgba8().into_raw()))
+                .map(|p| Ok(read_png(p)?.into_rgba8().into_raw()))
                 .collect::<Result<Vec<_>>>()?;
             Some(
                 (0..n)

@@ -44,10 +44,9 @@ pub(crate) fn mean_width(chart: &Chart) -> f64 {
     }
 }
 
-/// The narrow side of the minimum-area rectangle around `points`.
-pub(crate) fn narrow_side(points: &[V2]) -> f64 {
-    let hull = convex_hull(points);
-    let (c, s) = min_area_rect_dir(&hull);
+/// The narrow side of the minimum-area rectangle around a convex `hull`.
+fn hull_narrow_side(hull: &[V2]) -> f64 {
+    let (c, s) = min_area_rect_dir(hull);
     let [lo, hi] = bounds2(hull.iter().map(|&p| rotate(p, c, s)));
     (hi[0] - lo[0]).min(hi[1] - lo[1]).max(0.0)
 }
@@ -138,10 +137,11 @@ pub(crate) fn split(
                 }
                 let mut points = hull.clone();
                 points.extend_from_slice(&corners(g));
-                if narrow_side(&points) <= limit {
+                let grown = convex_hull(&points);
+                if hull_narrow_side(&grown) <= limit {
                     piece_of[g as usize] = id;
                     faces.push(g);
-                    hull = convex_hull(&points);
+                    hull = grown;
                     queue.push_back(g);
                 }
             }
@@ -176,6 +176,11 @@ pub(crate) fn split(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The narrow side of the minimum-area rectangle around `points`.
+    fn narrow_side(points: &[V2]) -> f64 {
+        hull_narrow_side(&convex_hull(points))
+    }
 
     /// A strip of quads (two faces each) along a polyline: `width` across,
     /// with the given centre points.
