@@ -64,6 +64,15 @@ impl Receivers {
         self.texel.is_empty()
     }
 
+    /// Per texel of the page: whether its centre lies inside a triangle.
+    pub fn centers_inside(&self) -> Vec<bool> {
+        let mut map = vec![false; (self.width * self.height) as usize];
+        for (&t, &c) in self.texel.iter().zip(&self.center_inside) {
+            map[t as usize] |= c;
+        }
+        map
+    }
+
     /// Appends the receiver at barycentrics `b` of triangle `t` (its
     /// position, normals and footprint), keyed `texel`.
     pub fn push_surface_point(

@@ -172,7 +172,9 @@ pub fn build(
                 let tris = surface_triangles(p.meshes, p.atlas);
                 let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
                 let (tracer, d) = (p.tracer, p.max_distance);
-                let (anchors, rays) = border::anchors(&tris, w, h, &free, tracer, d, seed, layer);
+                let inside = r.centers_inside();
+                let (anchors, rays) =
+                    border::anchors(&tris, w, h, &free, &inside, tracer, d, seed, layer);
                 std::sync::Arc::new(border::FitTargets {
                     layer,
                     free,

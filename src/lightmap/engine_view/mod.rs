@@ -162,11 +162,7 @@ pub enum TexelClass {
 
 /// Per texel of a page: whether its centre lies inside a triangle.
 pub fn centers_inside(receivers: &Receivers) -> Vec<bool> {
-    let mut map = vec![false; (receivers.width * receivers.height) as usize];
-    for (&t, &c) in receivers.texel.iter().zip(&receivers.center_inside) {
-        map[t as usize] |= c;
-    }
-    map
+    receivers.centers_inside()
 }
 
 /// The bilinear lookup of every channel at `uv` (glTF conventions, clamp to
