@@ -14,6 +14,7 @@ const messageBox = document.getElementById('message');
 const envSelect = document.getElementById('env');
 const rotationInput = document.getElementById('rotation');
 const engineSelect = document.getElementById('engine');
+const lightingSelect = document.getElementById('lighting');
 const params = new URLSearchParams(location.search);
 
 /** The engine this page shows: 'three', 'babylon' or 'both'. */
@@ -26,7 +27,7 @@ if (embedded) document.getElementById('bar').style.display = 'none';
 
 /** What the bar shows and every engine reads. */
 export const state = {
-  env: 'sky', rotation: 0, mode: 'sh', normalMaps: true, image: null, name: '', coefficients: null,
+  env: 'sky', rotation: 0, lighting: params.get('lighting') === 'environment' ? 'environment' : 'probe', mode: 'sh', normalMaps: true, image: null, name: '', coefficients: null,
 };
 
 export function say(text, level = 'info') {
@@ -87,8 +88,10 @@ async function imageRadiance(file) {
 
 /**
  * Wires the bar to `hooks`: { load(ArrayBuffer, name), environment(),
- * mode(), normalMaps() }; returns the `window.aobakeViewer` calls they
- * imply (setEnvironment, setMode, setNormalMaps, loadBytes).
+ * mode(), normalMaps(), lighting() (absent where the engine lights with
+ * its environment map alone) }; returns the `window.aobakeViewer` calls
+ * they imply (setEnvironment, setMode, setNormalMaps, loadBytes, and with
+ * `lighting` setLighting).
  */
 export function wireBar(hooks, stage) {
   for (const [key, env] of Object.entries(BUILT_IN)) {
@@ -102,6 +105,16 @@ export function wireBar(hooks, stage) {
   imageOption.textContent = 'image (choose one)';
   envSelect.append(imageOption);
   envSelect.value = state.env;
+  if (hooks.lighting) {
+    lightingSelect.value = state.lighting;
+    lightingSelect.addEventListener('change', () => {
+      state.lighting = lightingSelect.value;
+      hooks.lighting();
+    });
+  } else {
+    lightingSelect.value = 'environment';
+    lightingSelect.disabled = true;
+  }
   envSelect.addEventListener('change', () => {
     state.env = envSelect.value;
     hooks.environment();
@@ -176,6 +189,18 @@ export function wireBar(hooks, stage) {
       document.getElementById('normalmaps').checked = on;
       hooks.normalMaps();
     },
+    ...(hooks.lighting && {
+      /** 'probe' (the environment's SH as a LightProbe: diffuse only) or
+       * 'environment' (a prefiltered map of its radiance: diffuse and
+       * specular); returns it. */
+      async setLighting(name) {
+        if (name !== 'environment' && name !== 'probe') throw new Error(`unknown lighting ${name}`);
+        state.lighting = name;
+        lightingSelect.value = name;
+        await hooks.lighting();
+        return state.lighting;
+      },
+    }),
   };
 }
 
@@ -213,7 +238,7 @@ export function viewEvents() {
 /**
  * Starts an engine's page: sizes and lights it, loads the URL's model and
  * publishes `window.aobakeViewer` (the same calls on every engine's page).
- * `page`: { load, render, resize, environment, mode, api } where `api`
+ * `page`: { load, render, resize, environment, mode, lighting?, api } where `api`
  * holds the engine's own calls (view, currentView, onView, probe, size);
  * the bar (wireBar) is wired to those hooks, its drops to `stage`.
  */
@@ -226,6 +251,7 @@ export function startPage(name, lightmaps, page, stage) {
       lightmaps.setNormalMaps(state.normalMaps);
       page.render();
     },
+    lighting: page.lighting,
   }, stage);
   page.resize();
   page.environment();

@@ -7,11 +7,15 @@
 
 import { initialModel, say, state, wireBar } from './bar.js';
 
+// Babylon.js lights with its environment map (diffuse and specular): the
+// three.js half does too unless the URL asks for the probe.
+if (new URLSearchParams(location.search).get('lighting') !== 'probe') state.lighting = 'environment';
+
 const stage = document.getElementById('stage');
 document.getElementById('view').remove();
 
 function frameFor(engine) {
-  const params = new URLSearchParams({ engine, embedded: '1' });
+  const params = new URLSearchParams({ engine, embedded: '1', lighting: state.lighting });
   if (initialModel) params.set('model', initialModel);
   const frame = document.createElement('iframe');
   frame.title = engine;
@@ -57,6 +61,8 @@ const calls = wireBar({
   environment: () => each((v) => v.setEnvironment(state.env, state.rotation, state.image)),
   mode: () => each((v) => v.setMode(state.mode)),
   normalMaps: () => each((v) => v.setNormalMaps(state.normalMaps)),
+  // The three.js half; Babylon.js's has one lighting.
+  lighting: () => each((v) => v.setLighting?.(state.lighting)),
 }, stage);
 
 ready.then(async ([three]) => {

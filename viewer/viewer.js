@@ -1,8 +1,9 @@
 // The viewer page in three.js: opens a baked GLB (URL, file picker or drop;
 // nothing is uploaded), lights it with an environment (a LightProbe of its
-// SH; or, with setLighting('environment'), a PMREM-filtered map of its
-// radiance as scene.environment: diffuse and specular, like the Babylon.js
-// page's cube) and the AOBAKE_lightmap plugin, and exposes
+// SH, the default; or, with the bar's lighting 'environment' or
+// setLighting('environment'), a PMREM-filtered map of its radiance as
+// scene.environment: diffuse and specular, like the Babylon.js page's
+// cube) and the AOBAKE_lightmap plugin, and exposes
 // `window.aobakeViewer` (bar.js's startPage) for tests and the side-by-side
 // page. The bar and its state are bar.js's (shared with the Babylon.js
 // page).
@@ -26,11 +27,10 @@ scene.background = new THREE.Color(0x303134);
 const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 1000);
 const controls = new OrbitControls(camera, canvas);
 // The environment's SH (given to the plugin either way), and the probe
-// that lights with it in 'probe' lighting.
+// that lights with it in 'probe' lighting (the bar's state.lighting).
 const probe = new THREE.LightProbe();
 const pmrem = new THREE.PMREMGenerator(renderer);
 let environmentTarget = null;
-let lighting = 'probe';
 const lightmaps = new AobakeLightmaps();
 const views = viewEvents();
 let model = null;
@@ -81,7 +81,7 @@ function applyEnvironment() {
   environmentTarget = null;
   scene.environment = null;
   scene.remove(probe);
-  if (lighting === 'environment') {
+  if (state.lighting === 'environment') {
     environmentTarget = environmentMap(radiance);
     scene.environment = environmentTarget.texture;
   } else {
@@ -187,7 +187,7 @@ window.addEventListener('resize', () => {
 });
 
 startPage('three', lightmaps, {
-  load, render, resize, environment: applyEnvironment, mode: applyMode,
+  load, render, resize, environment: applyEnvironment, mode: applyMode, lighting: applyEnvironment,
   api: {
     /** The camera at `position` looking at `target`, in the file's frame. */
     view(position, target) {
@@ -202,14 +202,5 @@ startPage('three', lightmaps, {
     onView: views.on,
     probe: probePixels,
     size: () => [canvas.width, canvas.height],
-    /** 'probe' (the default: a LightProbe of the SH alone, no specular) or
-     * 'environment' (an environment map of the radiance, as
-     * scene.environment: diffuse and specular). */
-    setLighting(name) {
-      if (name !== 'environment' && name !== 'probe') throw new Error(`unknown lighting ${name}`);
-      lighting = name;
-      applyEnvironment();
-      return lighting;
-    },
   },
 }, stage);

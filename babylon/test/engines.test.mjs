@@ -192,6 +192,12 @@ test('side by side: both engines load the file, and the camera moved in one move
     }
     const message = await page.evaluate(() => document.getElementById('message').textContent);
     assert.match(message, /baked primitive.*three\.js.*Babylon\.js/);
+    // Both halves lit by the environment's map (Babylon.js has no other
+    // lighting), and the bar switches the three.js half to the probe.
+    const lighting = () => Promise.all(['three', 'babylon'].map((e) => of(e).evaluate(() => document.getElementById('lighting').value)));
+    assert.deepEqual(await lighting(), ['environment', 'environment']);
+    assert.equal(await page.evaluate(() => window.aobakeViewer.setLighting('probe')), 'probe');
+    assert.deepEqual(await lighting(), ['probe', 'environment']);
     // The bar drives both pages.
     await page.evaluate(() => window.aobakeViewer.setEnvironment('sunset', 90));
     const L = await Promise.all(frames.map((f) => f.evaluate(() => window.aobakeViewer.status().coefficients)));

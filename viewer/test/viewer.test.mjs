@@ -248,6 +248,8 @@ describe('directional environments relight as the decoded textures predict', () 
     const status = await pick(page, files.plane);
     assert.equal(status.baked, 1, status.message);
     await page.evaluate(() => window.aobakeViewer.view([1.2, 1.6, 1.5], [0, 0, 0]));
+    // The frames under the probe (the default), for after switching back.
+    const [relitBefore] = await relitAndPlain(page);
     assert.equal(await page.evaluate(() => window.aobakeViewer.setLighting('environment')), 'environment');
     for (const env of ['sky', 'lobe+x', 'lobe-x']) {
       await page.evaluate((e) => window.aobakeViewer.setEnvironment(e, 30), env);
@@ -283,6 +285,23 @@ describe('directional environments relight as the decoded textures predict', () 
     const mean = sum / Math.max(1, count);
     console.log(`# plane shaded under the environment map: ${count} pixels differ, by ${mean.toFixed(2)}/255 on average`);
     assert.ok(mean < 4, `shaded difference ${mean}/255`);
+    // The bar's lighting select back to the LightProbe: the map's specular
+    // is gone and SH relighting is three's own probe lighting again (as in
+    // the test above), not a stale program or a black frame.
+    await page.selectOption('#lighting', 'probe');
+    const [relitProbe, plainProbe] = await relitAndPlain(page);
+    let worstProbe = 0;
+    let sinceBefore = 0;
+    let changed = 0;
+    for (let o = 0; o < relitProbe.length; o++) {
+      worstProbe = Math.max(worstProbe, Math.abs(relitProbe[o] - plainProbe[o]));
+      sinceBefore = Math.max(sinceBefore, Math.abs(relitProbe[o] - relitBefore[o]));
+      changed += relit[o] !== relitProbe[o];
+    }
+    console.log(`# plane back under the probe: max |relit - three's probe lighting| ${worstProbe}/255, max |relit - relit before the map| ${sinceBefore}/255, ${changed} bytes differ from the frame under the map`);
+    assert.ok(worstProbe <= 2, `after switching back to the probe: ${worstProbe}/255`);
+    assert.ok(sinceBefore <= 1, `after switching back the frame differs from the probe's before: ${sinceBefore}/255`);
+    assert.ok(changed > 0, 'the frame under the map and under the probe are the same');
     assert.deepEqual(page.errors, []);
     await page.close();
   });
