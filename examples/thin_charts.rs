@@ -127,7 +127,7 @@ fn main() {
     let page = level
         .page(0, &scene, &s, &mut StageTimer::new())
         .expect("page");
-    let inside = engine_view::centers_inside(&page.receivers);
+    let inside = page.receivers.centers_inside();
     let total: f64 = tris.iter().map(|t| t.2).sum();
     let mut rng = 0x9e3779b97f4a7c15u64;
     let mut next = || {

@@ -122,7 +122,7 @@ fn fit(stitch: bool) -> (Vec<f32>, Vec<f32>) {
     // its very edges: no sliver cell.
     let center_inside = vec![true; (W * H) as usize];
     let seams = if stitch { vec![cut()] } else { Vec::new() };
-    solve(
+    let points = solve(
         &tris,
         &mut ao,
         &covered,
@@ -131,23 +131,13 @@ fn fit(stitch: bool) -> (Vec<f32>, Vec<f32>) {
         f_at,
         (W, H),
     );
-    assert!(fit_points(&tris, &covered, &center_inside, (W, H)) > 300);
+    assert!(points > 300, "{points} points");
     (before, ao)
 }
 
-/// The fit's points on `tris` with the free texels of `covered`.
-fn fit_points(
-    tris: &[SurfaceTri],
-    covered: &[bool],
-    center_inside: &[bool],
-    (w, h): (u32, u32),
-) -> usize {
-    let free: Vec<bool> = (0..w * h).map(|t| !interior(covered, w, h, t)).collect();
-    points(tris, w, h, &free, center_inside, 7).len()
-}
-
 /// Fits `ao` (a `w` x `h` page, `covered` as rasterized) to `f` at the
-/// border fit's points on `tris`, with `seams`, in the stitch's solve.
+/// border fit's points on `tris`, with `seams`, in the stitch's solve;
+/// returns how many points it fitted.
 fn solve(
     tris: &[SurfaceTri],
     ao: &mut [f32],
@@ -156,7 +146,7 @@ fn solve(
     seams: &[Seam],
     f: impl Fn(Vec3) -> f32,
     (w, h): (u32, u32),
-) {
+) -> usize {
     let free: Vec<bool> = (0..w * h).map(|t| !interior(covered, w, h, t)).collect();
     let fitted: Vec<Anchor> = points(tris, w, h, &free, center_inside, 7)
         .iter()
@@ -190,6 +180,7 @@ fn solve(
         None,
     );
     assert!(report.solve.converged, "{:?}", report.solve);
+    fitted.len()
 }
 
 /// Surface points within 1.5 texels of the chart's border (fresh ones,
@@ -363,7 +354,7 @@ fn a_wedge_thinner_than_a_texel_is_fitted_where_no_tap_is_its_own() {
     // the sliver cells' dense points.
     let mut grid_only = ao.clone();
     let all_inside = vec![true; (w * h) as usize];
-    solve(
+    let n_grid = solve(
         &tris,
         &mut grid_only,
         &covered,
@@ -373,7 +364,7 @@ fn a_wedge_thinner_than_a_texel_is_fitted_where_no_tap_is_its_own() {
         (w, h),
     );
     let mut dense = ao.clone();
-    solve(
+    let n_dense = solve(
         &tris,
         &mut dense,
         &covered,
@@ -381,10 +372,6 @@ fn a_wedge_thinner_than_a_texel_is_fitted_where_no_tap_is_its_own() {
         &[],
         f_wedge,
         (w, h),
-    );
-    let (n_grid, n_dense) = (
-        fit_points(&tris, &covered, &all_inside, (w, h)),
-        fit_points(&tris, &covered, &center_inside, (w, h)),
     );
     let (grid_only, dense) = (rms(&grid_only), rms(&dense));
     eprintln!(

@@ -76,7 +76,7 @@ fn a_bake_of_a_uniform_answer_shows_no_error_anywhere_and_spoiled_borders_show()
     // reads 0. Interior lookups never touch them; border lookups do.
     let (receivers, encoded) = kept.unwrap();
     let mut lm = aobake::encode::decode(&encoded).unwrap();
-    let centers = engine_view::centers_inside(&receivers);
+    let centers = receivers.centers_inside();
     for (a, &c) in lm.ao.iter_mut().zip(&centers) {
         if !c {
             *a = 0.0;

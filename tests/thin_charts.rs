@@ -88,7 +88,7 @@ fn chart_of(sc: aobake::gltf::Scene, min_chart_width: f32) -> (f32, f64) {
             .filter(|t| t.mesh == 0)
             .collect();
     let points = engine_view::surface_points(&tris, w, h, 2000, 3);
-    let centers = engine_view::centers_inside(&page.receivers);
+    let centers = page.receivers.centers_inside();
     let slivers = points
         .uv
         .iter()

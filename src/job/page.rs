@@ -257,7 +257,7 @@ impl Page<'_> {
         EngineProbe {
             points,
             reference,
-            centers: engine_view::centers_inside(&self.receivers),
+            centers: self.receivers.centers_inside(),
         }
     }
 

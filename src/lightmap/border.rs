@@ -31,6 +31,7 @@
 //! points per grid cell, so slivers are fitted too.
 
 use super::seams::Anchor;
+use super::seams::metric::taps;
 use crate::atlas::Receivers;
 use crate::atlas::rasterize::{SurfaceTri, closest_point_barycentric, inside};
 use crate::bake::{BakeParams, mc, validity, visibility};
@@ -89,14 +90,10 @@ pub struct FitPoint {
 }
 
 /// The four texels (indices into a `width` x `height` page) of the
-/// bilinear cell of a lookup at `uv` (texel units), clamped to the edge.
+/// bilinear cell of a lookup at `uv` (texel units): the engine view's
+/// [`taps`], so the fit and the metric agree on every cell.
 fn cell_taps(uv: Vec2, width: u32, height: u32) -> [usize; 4] {
-    let x0 = (uv.x - 0.5).floor();
-    let y0 = (uv.y - 0.5).floor();
-    let clamp = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1);
-    let (xa, xb) = (clamp(x0, width), clamp(x0 + 1.0, width));
-    let (ya, yb) = (clamp(y0, height), clamp(y0 + 1.0, height));
-    [(xa, ya), (xb, ya), (xa, yb), (xb, yb)].map(|(x, y)| (y * width + x) as usize)
+    taps([uv.x / width as f32, uv.y / height as f32], width, height).map(|(t, _)| t as usize)
 }
 
 /// Whether the bilinear cell of a lookup at `uv` (texel units) has a

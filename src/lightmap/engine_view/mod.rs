@@ -160,11 +160,6 @@ pub enum TexelClass {
     Sliver,
 }
 
-/// Per texel of a page: whether its centre lies inside a triangle.
-pub fn centers_inside(receivers: &Receivers) -> Vec<bool> {
-    receivers.centers_inside()
-}
-
 /// The bilinear lookup of every channel at `uv` (glTF conventions, clamp to
 /// edge): AO and the 9 SH coefficients.
 pub fn lookup(lm: &Lightmap, uv: [f32; 2]) -> (f32, [f32; SH_COUNT]) {
@@ -253,7 +248,7 @@ impl Sums {
 
 /// Compares the lookups of `lm` (the images as an engine reads them) at
 /// `points` with their `reference`, leaving out the points inside
-/// geometry; `center_inside` classifies them ([`centers_inside`]). The
+/// geometry; `center_inside` classifies them ([`Receivers::centers_inside`]). The
 /// relight error is measured at points of the meshes `layer_meshes` marks
 /// when both `lm` and the reference carry the layer; `layer_count`: the
 /// coefficients the textures hold (9 or 16), the reference cut alike.
