@@ -36,10 +36,12 @@
 // bake's frame (normals by M^T, M the root's linear part); and the indirect
 // specular is occluded by the lobe-filtered visible radiance over an open
 // receiver's (in place of Babylon's AO-based radiance occlusion). Without
-// the layer, the specular keeps Babylon's own occlusion from the baked AO.
+// the layer, the specular is occluded by the contract's fallback, the cone
+// of the AO around the bent normal from c (as in the three.js plugin; in
+// place of Babylon's radiance occlusion).
 //
 // Imports: @babylonjs/core and @babylonjs/loaders (pinned in package.json),
-// this folder's glsl.js (the layer's GLSL), and the engine-neutral modules
+// this folder's glsl.js (the bake's GLSL), and the engine-neutral modules
 // it shares with the three.js plugin: ../viewer/aobake-extension.js (the
 // extension's name and checks), ../viewer/aobake-sh.js (basis, quadrature,
 // Gamma, P) and, through glsl.js, ../viewer/aobake-glsl.js (the formulas).
@@ -61,7 +63,7 @@ import { Color4 } from '@babylonjs/core/Maths/math.color.js';
 import { Constants } from '@babylonjs/core/Engines/constants.js';
 import { EXTENSION, extensionProblem as contractProblem } from '../viewer/aobake-extension.js';
 import { basis9, project, radianceProduct } from '../viewer/aobake-sh.js';
-import { LAYER_GLSL } from './glsl.js';
+import { FALLBACK_GLSL, FRAME_GLSL, LAYER_GLSL } from './glsl.js';
 
 export { EXTENSION };
 
@@ -295,9 +297,10 @@ export class AobakeLightmapPlugin extends MaterialPluginBase {
     const layer = this.bake.visibility !== null;
     defines.AOBAKE_VISIBILITY = layer;
     defines.AOBAKE_VCOUNT = layer ? this.bake.vScale.length : 16;
-    // With the layer and the baked light on, the layer occludes the
-    // specular; Babylon's AO-based radiance occlusion would do it twice.
-    if (layer && this.lightmaps.mode === MODES.sh) defines.RADIANCEOCCLUSION = false;
+    // With the baked light on, the bake occludes the specular (the layer,
+    // or the contract's cone of the AO without it, as the three.js plugin
+    // does); Babylon's AO-based radiance occlusion would do it twice.
+    if (this.lightmaps.mode === MODES.sh) defines.RADIANCEOCCLUSION = false;
   }
 
   getAttributes(attributes, scene, mesh) {
@@ -414,7 +417,10 @@ uniform sampler2D aobakeV2;
 uniform sampler2D aobakeV3;
 uniform highp sampler2D aobakeP;
 ${LAYER_GLSL}
+#else
+${FALLBACK_GLSL}
 #endif
+${FRAME_GLSL}
 // The vertex normal n with Babylon's own two-sided flip (as normalW gets).
 vec3 aobakeVertexNormal(vec3 n) {
 #if defined(TWOSIDEDLIGHTING) && defined(NORMAL)
@@ -442,7 +448,7 @@ if (aobakeMode > 0.5 && aobakeMode < 1.5) finalIrradiance*=aoOut.ambientOcclusio
 finalIrradiance*=aoOut.ambientOcclusionColor;
 #endif`,
       '!vec3 finalRadiance=reflectionOut\\.environmentRadiance\\.rgb;': `vec3 finalRadiance=reflectionOut.environmentRadiance.rgb;
-#if defined(AOBAKE) && defined(AOBAKE_VISIBILITY)
+#ifdef AOBAKE
 if (aobakeMode > 1.5) finalRadiance *= aobakeSpecularOcclusion(
   aobakeNormalToBake(aobakeVertexNormal(geometricNormalW)),
   aobakeDirectionToBake(reflect(-viewDirectionW, normalW)), roughness);
@@ -455,10 +461,10 @@ if (aobakeDebug > 5.5 && aobakeDebug < 6.5) {
   gl_FragColor = vec4(0.0, 0.0, 0.0, 1.0);
 #endif
 }
-#ifdef AOBAKE_VISIBILITY
 else if (aobakeDebug > 9.5) gl_FragColor = vec4(vec3(aobakeSpecularOcclusion(
   aobakeNormalToBake(aobakeVertexNormal(geometricNormalW)),
   aobakeDirectionToBake(reflect(-viewDirectionW, normalW)), roughness)), 1.0);
+#ifdef AOBAKE_VISIBILITY
 else if (aobakeDebug > 6.5) {
   vec3 aobakeN = aobakeNormalToBake(aobakeVertexNormal(geometricNormalW));
   vec3 aobakeNp = aobakeNormalToBake(normalW);

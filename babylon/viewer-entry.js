@@ -16,4 +16,6 @@ export { RawCubeTexture } from '@babylonjs/core/Materials/Textures/rawCubeTextur
 export { CubeMapToSphericalPolynomialTools } from '@babylonjs/core/Misc/HighDynamicRange/cubemapToSphericalPolynomial.js';
 export { SceneLoader } from '@babylonjs/core/Loading/sceneLoader.js';
 export { Constants } from '@babylonjs/core/Engines/constants.js';
+export { HDRFiltering } from '@babylonjs/core/Materials/Textures/Filtering/hdrFiltering.js';
+export { ToHalfFloat } from '@babylonjs/core/Misc/halfFloat.js';
 export { AobakeLightmaps, registerAobakeLightmap, toBakeRows } from './aobake-lightmap.js';

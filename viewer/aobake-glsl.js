@@ -8,7 +8,8 @@
 // column k), aobakeLayer(out float v[16]) (the layer's v_i at the
 // fragment) and aobakeIrradiance() (c.L). Out: aobakeMappedIrradiance(n,
 // n') and aobakeSpecularOcclusion(n, R, roughness), all vectors in the
-// bake's frame.
+// bake's frame. CONE_GLSL, for primitives without the layer: the
+// contract's fallback specular occlusion from the AO and the bent normal.
 
 export const VISIBILITY_GLSL = /* glsl */ `
 const int AOBAKE_BAND[16] = int[16](0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3);
@@ -77,5 +78,22 @@ float aobakeSpecularOcclusion(vec3 n, vec3 R, float r) {
   const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
   float o = dot(unoccluded, lum);
   return o > 1e-6 ? clamp(dot(seen, lum) / o, 0.0, 1.0) : 1.0;
+}
+`;
+
+// Without the layer (the contract's fallback, Jimenez et al. 2016): a
+// visibility cone of cos = sqrt(1 - AO) around the bent normal (c_3, c_1,
+// c_2) and the glossy lobe's cone around R (half-angle roughness^2 pi/2),
+// their overlap by a smooth step of the angle between them. In: the bent
+// normal (unit), the AO, R and the roughness; out: the specular's factor.
+export const CONE_GLSL = /* glsl */ `
+float aobakeConeOcclusion(vec3 bent, float ao, vec3 R, float r) {
+  float cosVis = sqrt(max(1.0 - ao, 0.0));
+  float cosLobe = cos(clamp(r * r, 0.02, 1.0) * 1.5707963);
+  float rv = acos(clamp(cosVis, -1.0, 1.0)), rl = acos(clamp(cosLobe, -1.0, 1.0));
+  float d = acos(clamp(dot(bent, R), -1.0, 1.0));
+  float overlap = 1.0 - smoothstep(0.0, 1.0, (d - abs(rv - rl)) / max(rv + rl - abs(rv - rl), 1e-4));
+  float full = (1.0 - cosVis) / max(1.0 - cosLobe, 1e-4);
+  return clamp(mix(0.0, min(full, 1.0), overlap), 0.0, 1.0);
 }
 `;

@@ -64,7 +64,7 @@ import {
 } from 'three';
 import { EXTENSION, extensionProblem } from './aobake-extension.js';
 import { radianceProduct } from './aobake-sh.js';
-import { VISIBILITY_GLSL } from './aobake-glsl.js';
+import { CONE_GLSL, VISIBILITY_GLSL } from './aobake-glsl.js';
 
 export { EXTENSION, extensionProblem };
 
@@ -79,6 +79,9 @@ export const DEBUG = {
   // With the layer: the normal-mapped irradiance over pi, and the world
   // normals n' (normal-mapped) and n (vertex), as 0.5 + 0.5 n.
   mapped: 5, shadingNormal: 6, vertexNormal: 7,
+  // The factor on the environment map's specular (the layer's, or the
+  // cone of the AO without it), for the material's roughness.
+  specularOcclusion: 8,
 };
 
 export { basis16, gaunt, radianceProduct } from './aobake-sh.js';
@@ -288,22 +291,15 @@ void aobakeLayer(out float v[16]) {
 ${VISIBILITY_GLSL}
 #else
 // Without the layer: the cone of the AO around the bent normal from c
-// (Jimenez et al. 2016): a visibility cone of cos = sqrt(1 - AO) and the
-// lobe's cone, their overlap by a smooth step of the angle between them.
+// (the contract's fallback; aobake-glsl.js).
+${CONE_GLSL}
 float aobakeSpecularOcclusion(vec3 n, vec3 R, float r) {
   vec4 a = texture2D(aobakeSh0, vAobakeUv);
   vec3 bent = vec3(aobakeShScale[3] * a.a + aobakeShOffset[3],
                    aobakeShScale[1] * a.g + aobakeShOffset[1],
                    aobakeShScale[2] * a.b + aobakeShOffset[2]);
   bent = length(bent) > 1e-6 ? normalize(bent) : n;
-  float ao = clamp(texture2D(aobakeAoTex, vAobakeUv).r, 0.0, 1.0);
-  float cosVis = sqrt(max(1.0 - ao, 0.0));
-  float cosLobe = cos(clamp(r * r, 0.02, 1.0) * 1.5707963);
-  float rv = acos(clamp(cosVis, -1.0, 1.0)), rl = acos(clamp(cosLobe, -1.0, 1.0));
-  float d = acos(clamp(dot(bent, R), -1.0, 1.0));
-  float overlap = 1.0 - smoothstep(0.0, 1.0, (d - abs(rv - rl)) / max(rv + rl - abs(rv - rl), 1e-4));
-  float full = (1.0 - cosVis) / max(1.0 - cosLobe, 1e-4);
-  return clamp(mix(0.0, min(full, 1.0), overlap), 0.0, 1.0);
+  return aobakeConeOcclusion(bent, clamp(texture2D(aobakeAoTex, vAobakeUv).r, 0.0, 1.0), R, r);
 }
 #endif
 `;
@@ -381,9 +377,11 @@ export function patchMaterial(material, lightmaps, textures, ext) {
 #endif
 #if defined( RE_IndirectSpecular ) && defined( USE_ENVMAP )
   if (aobakeMode == 2) {
+    // The material's roughness (roughnessmap_fragment's), as Babylon.js
+    // has it: three's material.roughness adds its specular antialiasing.
     vec3 aobakeR = transformNormalByInverseViewMatrix(reflect(-geometryViewDir, geometryNormal), viewMatrix);
     radiance *= aobakeSpecularOcclusion(
-      transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), aobakeR, material.roughness);
+      transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), aobakeR, roughnessFactor);
   }
 #endif`,
       )
@@ -406,6 +404,9 @@ export function patchMaterial(material, lightmaps, textures, ext) {
     transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),
     transformNormalByInverseViewMatrix(normal, viewMatrix)), 1.0);
 #endif
+  else if (aobakeDebug == 8) gl_FragColor = vec4(vec3(aobakeSpecularOcclusion(
+    transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),
+    transformNormalByInverseViewMatrix(reflect(-geometryViewDir, geometryNormal), viewMatrix), roughnessFactor)), 1.0);
   else if (aobakeDebug == 6) gl_FragColor = vec4(0.5 + 0.5 * transformNormalByInverseViewMatrix(normal, viewMatrix), 1.0);
   else if (aobakeDebug == 7) gl_FragColor = vec4(0.5 + 0.5 * transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), 1.0);`,
       );

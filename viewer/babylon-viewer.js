@@ -6,12 +6,13 @@
 //
 // The baked light uses the environment's SH exactly as the three.js page
 // does (environments.js's projection, in the file's frame); the scene's
-// own environment (unbaked surfaces, specular) is a 32-pixel float cube
-// of the same radiance taken through the loader's root (a mirror).
+// own environment (unbaked surfaces, specular) is a 32-pixel half-float
+// cube of the same radiance taken through the loader's root (a mirror),
+// prefiltered by Babylon's HDRFiltering as its .env files are.
 
 import {
   AobakeLightmaps, ArcRotateCamera, Color4, Constants, CubeMapToSphericalPolynomialTools, Engine,
-  RawCubeTexture, Scene, SceneLoader, Vector3, registerAobakeLightmap, toBakeRows,
+  HDRFiltering, RawCubeTexture, Scene, SceneLoader, ToHalfFloat, Vector3, registerAobakeLightmap, toBakeRows,
 } from './vendor/babylon/aobake-babylon.js';
 import {
   describe, environment, say, startPage, state, status as barStatus, viewEvents,
@@ -67,7 +68,11 @@ function environmentCube(radiance, size = 32) {
     info[name] = data;
     faces.push(data);
   }
-  const texture = new RawCubeTexture(scene, faces, size, Constants.TEXTUREFORMAT_RGBA, Constants.TEXTURETYPE_FLOAT, true);
+  // Half floats: float textures need not filter in WebGL2 (SwiftShader's
+  // do not), and a cube without filtered mips gives every roughness the
+  // sharp radiance.
+  const halves = faces.map((f) => Uint16Array.from(f, ToHalfFloat));
+  const texture = new RawCubeTexture(scene, halves, size, Constants.TEXTUREFORMAT_RGBA, Constants.TEXTURETYPE_HALF_FLOAT, true);
   texture.sphericalPolynomial = CubeMapToSphericalPolynomialTools.ConvertCubeMapToSphericalPolynomial(info);
   return texture;
 }
@@ -87,13 +92,24 @@ function render() {
 const moving = () => camera.inertialAlphaOffset !== 0 || camera.inertialBetaOffset !== 0
   || camera.inertialRadiusOffset !== 0 || camera.inertialPanningX !== 0 || camera.inertialPanningY !== 0;
 
-function applyEnvironment() {
+let generation = 0;
+/** Lights the scene with the bar's environment; resolves once its cube is
+ * prefiltered and in place (a later call supersedes an earlier one). */
+async function applyEnvironment() {
   const { radiance, coefficients } = environment();
+  lightmaps.setEnvironment(coefficients);
+  const mine = ++generation;
   const next = environmentCube(radiance);
+  // Babylon's own GGX prefilter (as for its .env and .hdr files): mip k
+  // holds the radiance for roughness k of the PBR's LOD mapping.
+  await new HDRFiltering(engine, { quality: Constants.TEXTURE_FILTERING_QUALITY_OFFLINE }).prefilter(next);
+  if (mine !== generation) {
+    next.dispose();
+    return;
+  }
   scene.environmentTexture = next;
   cube?.dispose();
   cube = next;
-  lightmaps.setEnvironment(coefficients);
   render();
 }
 
@@ -134,7 +150,7 @@ async function load(source, name) {
   state.name = name;
   frame();
   if (!state.normalMaps) lightmaps.setNormalMaps(false);
-  applyEnvironment();
+  await applyEnvironment();
   applyMode();
   await new Promise((ok) => scene.executeWhenReady(ok));
   say(...describe(lightmaps));

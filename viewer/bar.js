@@ -169,14 +169,14 @@ export function wireBar(hooks, stage) {
   return {
     loadBytes: (bytes, name) => hooks.load(new Uint8Array(bytes).buffer, name),
     /** A built-in environment (or 'image' with `image` a radiance function);
-     * returns its SH. */
-    setEnvironment(name, rotationDegrees = 0, image = null) {
+     * resolves to its SH once the page is lit by it. */
+    async setEnvironment(name, rotationDegrees = 0, image = null) {
       state.env = name;
       state.rotation = rotationDegrees;
       if (image) state.image = image;
       envSelect.value = name;
       rotationInput.value = String(rotationDegrees);
-      hooks.environment();
+      await hooks.environment();
       return state.coefficients;
     },
     setMode(mode) {
