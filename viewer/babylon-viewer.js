@@ -101,8 +101,13 @@ async function applyEnvironment() {
   const mine = ++generation;
   const next = environmentCube(radiance);
   // Babylon's own GGX prefilter (as for its .env and .hdr files): mip k
-  // holds the radiance for roughness k of the PBR's LOD mapping.
-  await new HDRFiltering(engine, { quality: Constants.TEXTURE_FILTERING_QUALITY_OFFLINE }).prefilter(next);
+  // holds the radiance for roughness k of the PBR's LOD mapping. Where it
+  // cannot run (WebGL1), the cube's own mips light the specular.
+  try {
+    await new HDRFiltering(engine, { quality: Constants.TEXTURE_FILTERING_QUALITY_OFFLINE }).prefilter(next);
+  } catch (e) {
+    console.warn(`the environment's specular is not prefiltered: ${e.message ?? e}`);
+  }
   if (mine !== generation) {
     next.dispose();
     return;
