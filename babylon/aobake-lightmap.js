@@ -432,6 +432,9 @@ vec3 aobakeVertexNormal(vec3 n) {
 #endif
   return n;
 }
+// The specular occlusion at the fragment, from main()'s variables: one
+// expression for the render and the debug output.
+#define AOBAKE_SPECULAR_OCCLUSION() aobakeSpecularOcclusion(aobakeNormalToBake(aobakeVertexNormal(geometricNormalW)), aobakeDirectionToBake(reflect(-viewDirectionW, normalW)), roughness)
 #endif`,
       '!vec3 finalIrradiance=reflectionOut\\.environmentIrradiance;': `vec3 finalIrradiance=reflectionOut.environmentIrradiance;
 #ifdef AOBAKE
@@ -449,9 +452,7 @@ finalIrradiance*=aoOut.ambientOcclusionColor;
 #endif`,
       '!vec3 finalRadiance=reflectionOut\\.environmentRadiance\\.rgb;': `vec3 finalRadiance=reflectionOut.environmentRadiance.rgb;
 #ifdef AOBAKE
-if (aobakeMode > 1.5) finalRadiance *= aobakeSpecularOcclusion(
-  aobakeNormalToBake(aobakeVertexNormal(geometricNormalW)),
-  aobakeDirectionToBake(reflect(-viewDirectionW, normalW)), roughness);
+if (aobakeMode > 1.5) finalRadiance *= AOBAKE_SPECULAR_OCCLUSION();
 #endif`,
       CUSTOM_FRAGMENT_MAIN_END: `#ifdef AOBAKE
 if (aobakeDebug > 5.5 && aobakeDebug < 6.5) {
@@ -461,9 +462,7 @@ if (aobakeDebug > 5.5 && aobakeDebug < 6.5) {
   gl_FragColor = vec4(0.0, 0.0, 0.0, 1.0);
 #endif
 }
-else if (aobakeDebug > 9.5) gl_FragColor = vec4(vec3(aobakeSpecularOcclusion(
-  aobakeNormalToBake(aobakeVertexNormal(geometricNormalW)),
-  aobakeDirectionToBake(reflect(-viewDirectionW, normalW)), roughness)), 1.0);
+else if (aobakeDebug > 9.5) gl_FragColor = vec4(vec3(AOBAKE_SPECULAR_OCCLUSION()), 1.0);
 #ifdef AOBAKE_VISIBILITY
 else if (aobakeDebug > 6.5) {
   vec3 aobakeN = aobakeNormalToBake(aobakeVertexNormal(geometricNormalW));

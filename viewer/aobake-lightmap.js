@@ -302,6 +302,11 @@ float aobakeSpecularOcclusion(vec3 n, vec3 R, float r) {
   return aobakeConeOcclusion(bent, clamp(texture2D(aobakeAoTex, vAobakeUv).r, 0.0, 1.0), R, r);
 }
 #endif
+// The specular occlusion at the fragment, from main()'s variables: one
+// expression for the render and the debug output. The material's roughness
+// (roughnessmap_fragment's), as Babylon.js has it: three's
+// material.roughness adds its specular antialiasing.
+#define AOBAKE_SPECULAR_OCCLUSION() aobakeSpecularOcclusion(transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), transformNormalByInverseViewMatrix(reflect(-geometryViewDir, geometryNormal), viewMatrix), roughnessFactor)
 `;
 
 /** Patches a standard (or physical) material for the bake. */
@@ -376,13 +381,7 @@ export function patchMaterial(material, lightmaps, textures, ext) {
   }
 #endif
 #if defined( RE_IndirectSpecular ) && defined( USE_ENVMAP )
-  if (aobakeMode == 2) {
-    // The material's roughness (roughnessmap_fragment's), as Babylon.js
-    // has it: three's material.roughness adds its specular antialiasing.
-    vec3 aobakeR = transformNormalByInverseViewMatrix(reflect(-geometryViewDir, geometryNormal), viewMatrix);
-    radiance *= aobakeSpecularOcclusion(
-      transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), aobakeR, roughnessFactor);
-  }
+  if (aobakeMode == 2) radiance *= AOBAKE_SPECULAR_OCCLUSION();
 #endif`,
       )
       .replace(
@@ -404,9 +403,7 @@ export function patchMaterial(material, lightmaps, textures, ext) {
     transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),
     transformNormalByInverseViewMatrix(normal, viewMatrix)), 1.0);
 #endif
-  else if (aobakeDebug == 8) gl_FragColor = vec4(vec3(aobakeSpecularOcclusion(
-    transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix),
-    transformNormalByInverseViewMatrix(reflect(-geometryViewDir, geometryNormal), viewMatrix), roughnessFactor)), 1.0);
+  else if (aobakeDebug == 8) gl_FragColor = vec4(vec3(AOBAKE_SPECULAR_OCCLUSION()), 1.0);
   else if (aobakeDebug == 6) gl_FragColor = vec4(0.5 + 0.5 * transformNormalByInverseViewMatrix(normal, viewMatrix), 1.0);
   else if (aobakeDebug == 7) gl_FragColor = vec4(0.5 + 0.5 * transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), 1.0);`,
       );
