@@ -170,6 +170,7 @@ fn solve(
         seams,
         &[],
         &fitted,
+        &|_| 1.0,
         SEAM_SCALE,
         1.0,
         w,

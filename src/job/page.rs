@@ -166,6 +166,7 @@ impl Page<'_> {
                 seed: s.seed,
                 diagonal: level.geometry.space.diagonal,
                 fit_cache: Some(&self.fit_cache),
+                sigma_texels: passes.adaptive_stats.as_ref().map(|a| &a.sigma_texels[..]),
             },
             s.seams,
             s.border,

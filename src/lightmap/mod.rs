@@ -14,7 +14,9 @@
 //! 2. [`spread`](mod@spread): receiver results over the page through that
 //!    map;
 //! 3. [`border`]: surface points of the border band's bilinear cells,
-//!    traced, for the texels there to be fitted to (`--border fit`);
+//!    traced, for the texels there to be fitted to (`--border fit`), and
+//!    [`edge`]: the border texels' own receivers as rows where they were
+//!    baked, on the chart's edge;
 //! 4. [`seams`]: the two sides of every smooth seam stitched to agree
 //!    (within the page, and to a shared target across pages), solved in
 //!    one least-squares system with the border fit's points.
@@ -25,6 +27,7 @@
 
 pub mod border;
 pub mod dilate;
+pub mod edge;
 pub mod engine_view;
 pub mod seams;
 pub mod spread;
@@ -58,6 +61,8 @@ pub struct BorderReport {
     /// Mean |AO lookup - AO traced| at them before and after the solve.
     pub ao_before: f64,
     pub ao_after: f64,
+    /// Edge receivers fitted where they were baked ([`edge`]).
+    pub edge_rows: usize,
 }
 
 /// Float lightmap images, row-major, row 0 at the top (glTF v = 0).
@@ -97,6 +102,9 @@ pub struct PageBake<'a> {
     pub seed: u64,
     /// The scene's bounding-box diagonal (bake units to world units).
     pub diagonal: f64,
+    /// Per receiver: the adaptive filter's sigma in texels (`--method
+    /// adaptive`), the scale below which its signal is smooth.
+    pub sigma_texels: Option<&'a [f32]>,
     /// The page's traced border fit from an earlier run, if any.
     pub fit_cache: Option<&'a border::FitCache>,
 }
@@ -200,10 +208,42 @@ pub fn build(
             Some(fit)
         }
     };
-    let fitted: &[seams::Anchor] = fit.as_ref().map_or(&[], |f| &f.anchors);
+    let points: &[seams::Anchor] = fit.as_ref().map_or(&[], |f| &f.anchors);
     let fit_rays = fit.as_ref().map_or(0, |f| f.rays);
-    let gap = |lm: &Lightmap| seams::anchor_gap(fitted, w, h, &lm.ao);
+    let gap = |lm: &Lightmap| seams::anchor_gap(points, w, h, &lm.ao);
     let fit_before = gap(&lightmap);
+    let edge = match fit {
+        None => edge::EdgeRows::default(),
+        Some(_) => {
+            let free: Vec<bool> = (0..w * h)
+                .map(|t| !seams::interior(&lightmap.covered, w, h, t))
+                .collect();
+            let on_seam = edge::seam_texels(&found, &anchors, w, h);
+            let tris = surface_triangles(p.meshes, p.atlas);
+            let lm = &lightmap;
+            let channels = edge::channels(lm.visibility.is_some());
+            // Edge receivers the adaptive filter widened (no contact).
+            let smooth = |j: usize| p.sigma_texels.is_some_and(|s| s[j] > 0.0);
+            edge::rows(
+                r,
+                p.inside,
+                &smooth,
+                &tris,
+                &free,
+                &on_seam,
+                points,
+                channels,
+                |t, out| {
+                    out[0] = lm.ao[t];
+                    out[1..1 + SH_COUNT].copy_from_slice(&lm.sh[t]);
+                    if let Some(v) = &lm.visibility {
+                        out[1 + SH_COUNT..].copy_from_slice(&v[t]);
+                    }
+                },
+            )
+        }
+    };
+    let fitted: Vec<seams::Anchor> = points.iter().chain(&edge.rows).cloned().collect();
     let seam_scale = match border_mode {
         BorderMode::Fit => border::SEAM_SCALE,
         BorderMode::Off => 1.0,
@@ -211,7 +251,8 @@ pub fn build(
     let report = seams::stitch_page(
         &found,
         &anchors,
-        fitted,
+        &fitted,
+        &|t| edge.data_weight(t),
         seam_scale,
         p.diagonal,
         w,
@@ -222,10 +263,11 @@ pub fn build(
         lightmap.visibility.as_deref_mut(),
     );
     let border = (!fitted.is_empty()).then(|| BorderReport {
-        points: fitted.len(),
+        points: points.len(),
         rays: fit_rays,
         ao_before: fit_before,
         ao_after: gap(&lightmap),
+        edge_rows: edge.rows.len(),
     });
     let seam_maps = before.map(|b| [b, map(&lightmap)]);
     timer.lap(if stitch { "seams" } else { "border solve" });

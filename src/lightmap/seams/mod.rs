@@ -107,12 +107,14 @@ pub fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f6
 /// ([`anchor::anchors`]), pulled to their targets; `fitted`: the border
 /// fit's points ([`crate::lightmap::border`]), solved in the same system,
 /// where a seam's rows (two-sided, and the anchors) are scaled by
-/// `seam_scale`.
+/// `seam_scale`; `data_weight(t)`: the weight of texel t's data term (1,
+/// less where an edge row holds its value: [`crate::lightmap::edge`]).
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
     anchors: &[Anchor],
     fitted: &[Anchor],
+    data_weight: &(dyn Fn(u32) -> f64 + Sync),
     seam_scale: f64,
     diagonal: f64,
     width: u32,
@@ -138,6 +140,7 @@ pub fn stitch_page(
             scale,
             channels,
             fixed,
+            data_weight,
             |t, out| {
                 let t = t as usize;
                 out[0] = ao[t];

@@ -104,6 +104,7 @@ pub fn stitch(
     seam_scale: f64,
     channels: usize,
     fixed: impl Fn(u32) -> bool,
+    data_weight: &(dyn Fn(u32) -> f64 + Sync),
     baked: impl Fn(u32, &mut [f32]) + Sync,
 ) -> (Vec<u32>, Vec<f32>, StitchStats) {
     let mut system = System::new(fixed);
@@ -137,7 +138,7 @@ pub fn stitch(
     for (row_taps, anchor, scale) in two_sided.chain(one_sided) {
         system.push(row_taps, anchor, scale);
     }
-    system.solve(channels, baked, |k| &anchor_at(k).target)
+    system.solve_weighted(channels, data_weight, baked, |k| &anchor_at(k).target)
 }
 
 /// A least-squares system over texels being assembled: rows of bilinear
@@ -212,6 +213,19 @@ impl<F: Fn(u32) -> bool> System<F> {
     pub fn solve<'t>(
         self,
         channels: usize,
+        baked: impl Fn(u32, &mut [f32]) + Sync,
+        target: impl Fn(usize) -> &'t [f32] + Sync,
+    ) -> (Vec<u32>, Vec<f32>, StitchStats) {
+        self.solve_weighted(channels, &|_| 1.0, baked, target)
+    }
+
+    /// The same with texel t's data term weighing `data_weight(t)`:
+    /// minimise Sum_t w_t (x_t - x0_t)^2 + lambda^2 Sum_rows (row(x) -
+    /// target)^2 (weights 1: exactly [`System::solve`]).
+    pub fn solve_weighted<'t>(
+        self,
+        channels: usize,
+        data_weight: &(dyn Fn(u32) -> f64 + Sync),
         baked: impl Fn(u32, &mut [f32]) + Sync,
         target: impl Fn(usize) -> &'t [f32] + Sync,
     ) -> (Vec<u32>, Vec<f32>, StitchStats) {
@@ -291,14 +305,19 @@ impl<F: Fn(u32) -> bool> System<F> {
                 let m = members.len();
                 let lambda2 = SEAM_WEIGHT * SEAM_WEIGHT;
                 let texels: Vec<u32> = members.iter().map(|&u| texel_of[u as usize]).collect();
-                let mut diagonal = vec![1.0f64; m];
+                let dw: Vec<f64> = texels.iter().map(|&t| data_weight(t)).collect();
+                let mut diagonal = dw.clone();
                 for row in &rows {
                     for &(i, w) in row {
                         diagonal[i] += lambda2 * w * w;
                     }
                 }
                 let apply = |x: &[f64], y: &mut [f64]| {
-                    y.copy_from_slice(x);
+                    for (i, (yi, xi)) in y.chunks_mut(c).zip(x.chunks(c)).enumerate() {
+                        for (a, b) in yi.iter_mut().zip(xi) {
+                            *a = dw[i] * b;
+                        }
+                    }
                     let mut d = vec![0.0f64; c];
                     for row in &rows {
                         d.iter_mut().for_each(|v| *v = 0.0);
@@ -321,7 +340,7 @@ impl<F: Fn(u32) -> bool> System<F> {
                 let x0: Vec<f64> = start.iter().map(|&v| v as f64).collect();
                 // Right-hand side: x0 less lambda^2 C^T k (the fixed texels'
                 // part of each constraint).
-                let mut b = x0.clone();
+                let mut b: Vec<f64> = x0.iter().enumerate().map(|(j, v)| dw[j / c] * v).collect();
                 for (row, k) in rows.iter().zip(&constants) {
                     for &(i, w) in row {
                         for (bk, kk) in b[i * c..(i + 1) * c].iter_mut().zip(k) {
@@ -471,6 +490,7 @@ mod tests {
             1.0,
             1,
             |_| false,
+            &|_| 1.0,
             |t, out| out[0] = values[t as usize],
         );
         assert!(stats.converged && stats.unknowns > 0, "{stats:?}");
@@ -514,6 +534,7 @@ mod tests {
             1.0,
             1,
             |t| t % w < 3,
+            &|_| 1.0,
             |t, out| out[0] = values[t as usize],
         );
         assert!(stats.converged && stats.constraints == 24, "{stats:?}");
