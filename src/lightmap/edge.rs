@@ -26,7 +26,7 @@
 //! receiver gets a row only where its AO agrees with the border fit's
 //! traced points near it ([`agrees`]). Sponza 1024 (200,000 engine-view
 //! points), AO all / border: rows at every edge receiver 0.0133 / 0.0343
-//! -> 0.0142 / 0.0389; at the widened ones and the agreeing contact ones,
+//! -> 0.0143 / 0.0396; at the widened ones and the agreeing contact ones,
 //! 0.0133 / 0.0341. Without the adaptive filter's widths (`--method mc`,
 //! `sheared`) every edge receiver is judged as a contact one.
 //!
@@ -156,7 +156,7 @@ pub const CONTACT_REACH: f32 = 0.75;
 /// receiver that gets a row. Flight helmet 1024 / Sponza 1024 (relight
 /// all / interior; AO border): no contact rows 1.2076x / 0.0341; at 0.05
 /// 1.2016x / 0.0340; 0.1, 1.1991x / 0.0341; 0.15, 1.1982x / 0.0347; every
-/// contact receiver, 1.1967x / 0.0389.
+/// contact receiver, 1.1967x / 0.0396.
 pub const CONTACT_AGREEMENT: f32 = 0.1;
 
 /// Whether a contact receiver's AO `ao` is what the area around it shows:
