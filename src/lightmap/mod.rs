@@ -212,12 +212,10 @@ pub fn build(
     let fit_rays = fit.as_ref().map_or(0, |f| f.rays);
     let gap = |lm: &Lightmap| seams::anchor_gap(points, w, h, &lm.ao);
     let fit_before = gap(&lightmap);
-    let edge = match fit {
+    let edge = match &fit {
         None => edge::EdgeRows::default(),
-        Some(_) => {
-            let free: Vec<bool> = (0..w * h)
-                .map(|t| !seams::interior(&lightmap.covered, w, h, t))
-                .collect();
+        Some(fit) => {
+            let free = &fit.free;
             let on_seam = edge::seam_texels(&found, &anchors, w, h);
             let tris = surface_triangles(p.meshes, p.atlas);
             let lm = &lightmap;
@@ -229,7 +227,7 @@ pub fn build(
                 p.inside,
                 &smooth,
                 &tris,
-                &free,
+                free,
                 &on_seam,
                 points,
                 channels,
