@@ -42,7 +42,6 @@ use super::seams::metric::{samples, taps};
 use super::seams::solve::POINTS_PER_TEXEL;
 use crate::atlas::Receivers;
 use crate::atlas::rasterize::{SurfaceTri, receiver_uvs};
-use crate::sh::{SH_COUNT, VIS_COUNT};
 use glam::Vec2;
 
 /// An edge row's weight, as the border fit's rows'
@@ -208,12 +207,6 @@ impl PointGrid {
         }
         out
     }
-}
-
-/// The channels of a page's values: AO, the SH and, with `layer`, the
-/// visibility layer's.
-pub fn channels(layer: bool) -> usize {
-    1 + SH_COUNT + if layer { VIS_COUNT } else { 0 }
 }
 
 #[cfg(test)]

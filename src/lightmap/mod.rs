@@ -219,7 +219,7 @@ pub fn build(
             let on_seam = edge::seam_texels(&found, &anchors, w, h);
             let tris = surface_triangles(p.meshes, p.atlas);
             let lm = &lightmap;
-            let channels = edge::channels(lm.visibility.is_some());
+            let channels = seams::channels(lm.visibility.is_some());
             // Edge receivers the adaptive filter widened (no contact).
             let smooth = |j: usize| p.sigma_texels.is_some_and(|s| s[j] > 0.0);
             edge::rows(
@@ -231,13 +231,7 @@ pub fn build(
                 &on_seam,
                 points,
                 channels,
-                |t, out| {
-                    out[0] = lm.ao[t];
-                    out[1..1 + SH_COUNT].copy_from_slice(&lm.sh[t]);
-                    if let Some(v) = &lm.visibility {
-                        out[1 + SH_COUNT..].copy_from_slice(&v[t]);
-                    }
-                },
+                |t, out| seams::write_channels(&lm.ao, &lm.sh, lm.visibility.as_deref(), t, out),
             )
         }
     };

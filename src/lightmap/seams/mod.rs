@@ -99,6 +99,28 @@ pub fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f6
     sum / anchors.len().max(1) as f64
 }
 
+/// The channels a page's solve holds: AO, the SH and, with `layer`, the
+/// visibility layer's.
+pub fn channels(layer: bool) -> usize {
+    1 + SH_COUNT + if layer { VIS_COUNT } else { 0 }
+}
+
+/// Writes texel `t`'s channels ([`channels`]) into `out`: AO, then the
+/// SH, then the layer's coefficients if `v` holds them.
+pub fn write_channels(
+    ao: &[f32],
+    sh: &[[f32; SH_COUNT]],
+    v: Option<&[[f32; VIS_COUNT]]>,
+    t: usize,
+    out: &mut [f32],
+) {
+    out[0] = ao[t];
+    out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);
+    if let Some(v) = v {
+        out[1 + SH_COUNT..].copy_from_slice(&v[t]);
+    }
+}
+
 /// Stitches the page's images in place (AO clamped to [0, 1] after) along
 /// `seams` (bake units; `diagonal` turns lengths into world units).
 /// [`interior`] texels (by `covered`, the texels with a receiver of their
@@ -126,7 +148,7 @@ pub fn stitch_page(
 ) -> SeamReport {
     let before = metric::measure(seams, width, height, ao, sh);
     let gap_before = anchor_gap(anchors, width, height, ao);
-    let channels = 1 + SH_COUNT + if visibility.is_some() { VIS_COUNT } else { 0 };
+    let channels = channels(visibility.is_some());
     let (texels, values, solve) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
         let fixed = |t: u32| interior(covered, width, height, t);
@@ -141,14 +163,7 @@ pub fn stitch_page(
             channels,
             fixed,
             data_weight,
-            |t, out| {
-                let t = t as usize;
-                out[0] = ao[t];
-                out[1..1 + SH_COUNT].copy_from_slice(&sh[t]);
-                if let Some(v) = v {
-                    out[1 + SH_COUNT..].copy_from_slice(&v[t]);
-                }
-            },
+            |t, out| write_channels(ao, sh, v, t as usize, out),
         )
     };
     let mut visibility = visibility;
