@@ -376,25 +376,38 @@ fn rasterize_band(tris: &[SurfaceTri], list: &[u32], band: u32, w: u32, h: u32) 
 /// The UV (texel units) of the receiver [`rasterize`] gives each texel
 /// that `needed` marks: the covered point nearest its centre.
 pub fn receiver_uvs(tris: &[SurfaceTri], w: u32, h: u32, needed: &[bool]) -> Vec<Option<Vec2>> {
-    let mut best: Vec<(f32, Option<Vec2>)> = vec![(f32::INFINITY, None); needed.len()];
     let reach2 = CONSERVATIVE_REACH * CONSERVATIVE_REACH;
-    for t in tris {
-        let ([xa, xb], [ya, yb]) = reach_box(&t.uv, w, h);
-        for y in ya..=yb {
-            for x in xa..=xb {
-                let i = (y * w + x) as usize;
-                if !needed[i] {
-                    continue;
-                }
-                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let (b, d2) = nearest(p, &t.uv);
-                if d2 <= reach2 && d2 < best[i].0 {
-                    best[i] = (d2, Some(t.uv[0] * b[0] + t.uv[1] * b[1] + t.uv[2] * b[2]));
-                }
-            }
+    // Every triangle's candidates (texel, distance^2, triangle, point), in
+    // parallel; then per texel the nearest, the first triangle on a tie:
+    // what a loop over the triangles in order keeps.
+    let candidates: Vec<(usize, f32, usize, Vec2)> = tris
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(k, t)| {
+            let ([xa, xb], [ya, yb]) = reach_box(&t.uv, w, h);
+            (ya..=yb).flat_map(move |y| {
+                (xa..=xb).filter_map(move |x| {
+                    let i = (y * w + x) as usize;
+                    if !needed[i] {
+                        return None;
+                    }
+                    let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                    let (b, d2) = nearest(p, &t.uv);
+                    (d2 <= reach2)
+                        .then(|| (i, d2, k, t.uv[0] * b[0] + t.uv[1] * b[1] + t.uv[2] * b[2]))
+                })
+            })
+        })
+        .collect();
+    let mut best: Vec<(f32, usize, Option<Vec2>)> =
+        vec![(f32::INFINITY, usize::MAX, None); needed.len()];
+    for (i, d2, k, uv) in candidates {
+        let b = &mut best[i];
+        if d2 < b.0 || (d2 == b.0 && k < b.1) {
+            *b = (d2, k, Some(uv));
         }
     }
-    best.into_iter().map(|b| b.1).collect()
+    best.into_iter().map(|b| b.2).collect()
 }
 
 #[cfg(test)]

@@ -43,6 +43,7 @@ use super::seams::solve::POINTS_PER_TEXEL;
 use crate::atlas::Receivers;
 use crate::atlas::rasterize::{SurfaceTri, receiver_uvs};
 use glam::Vec2;
+use rayon::prelude::*;
 
 /// An edge row's weight, as the border fit's rows'
 /// ([`super::border::FIT_WEIGHT`]). Flight helmet 1024, 100,000
@@ -105,13 +106,13 @@ pub fn seam_texels(seams: &[Seam], cross_page: &[Anchor], width: u32, height: u3
 pub fn rows(
     receivers: &Receivers,
     inside: &[bool],
-    smooth: &dyn Fn(usize) -> bool,
+    smooth: &(dyn Fn(usize) -> bool + Sync),
     tris: &[SurfaceTri],
     free: &[bool],
     on_seam: &[bool],
     points: &[Anchor],
     channels: usize,
-    value: impl Fn(usize, &mut [f32]),
+    value: impl Fn(usize, &mut [f32]) + Sync,
 ) -> EdgeRows {
     let (w, h) = (receivers.width, receivers.height);
     let n = (w * h) as usize;
@@ -129,22 +130,32 @@ pub fn rows(
     let needed: Vec<bool> = receiver_of.iter().map(|&j| j != u32::MAX).collect();
     let uvs = receiver_uvs(tris, w, h, &needed);
     let near = PointGrid::new(points, w, h);
+    let found: Vec<(usize, Anchor)> = uvs
+        .into_par_iter()
+        .enumerate()
+        .filter_map(|(t, uv)| {
+            let uv = uv?;
+            let mut target = vec![0.0f32; channels];
+            value(t, &mut target);
+            if !smooth(receiver_of[t] as usize) && !agrees(target[0], &near.ao_near(points, uv)) {
+                return None;
+            }
+            let row = Anchor {
+                uv: [uv.x / w as f32, uv.y / h as f32],
+                target,
+                weight: EDGE_WEIGHT,
+            };
+            Some((t, row))
+        })
+        .collect();
     let mut held = vec![false; n];
-    let mut rows = Vec::new();
-    for (t, uv) in uvs.into_iter().enumerate() {
-        let Some(uv) = uv else { continue };
-        let mut target = vec![0.0f32; channels];
-        value(t, &mut target);
-        if !smooth(receiver_of[t] as usize) && !agrees(target[0], &near.ao_near(points, uv)) {
-            continue;
-        }
-        held[t] = true;
-        rows.push(Anchor {
-            uv: [uv.x / w as f32, uv.y / h as f32],
-            target,
-            weight: EDGE_WEIGHT,
-        });
-    }
+    let rows = found
+        .into_iter()
+        .map(|(t, row)| {
+            held[t] = true;
+            row
+        })
+        .collect();
     EdgeRows { rows, held }
 }
 

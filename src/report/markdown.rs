@@ -37,6 +37,24 @@ pub fn markdown(r: &SweepReport) -> String {
         r.texels - r.texels_inside,
         r.texels_inside
     ));
+    let busy = |stages: &[crate::stage::StageTime]| -> Vec<String> {
+        stages
+            .iter()
+            .map(|p| {
+                format!(
+                    "{} {:.2} ({:.0}% busy)",
+                    p.stage,
+                    p.seconds,
+                    100.0 * p.utilisation
+                )
+            })
+            .collect()
+    };
+    line(format!(
+        "Shared stages, seconds and utilisation (CPU time over wall time times {} threads; a serial stage shows 1/threads): {}.\n",
+        rayon::current_num_threads(),
+        busy(&r.shared_stages).join(", ")
+    ));
     if let Some(f) = &r.reference_seams {
         line(format!(
             "Seams (the reference bake's {} smooth seams, {:.1} world units): AO jump mean {:.4} -> {:.4}, p95 {:.4} -> {:.4}, share over 8/255 {:.1}% -> {:.1}%, SH RMS jump {:.4} -> {:.4} after stitching ({} unknowns, {} CG iterations at most, {}).\n",
@@ -62,11 +80,7 @@ pub fn markdown(r: &SweepReport) -> String {
     line("| run | end-to-end s | passes s | rays/texel | AO RMSE | AO bias | AO p99 | AO max | SH RMSE L0 | L1 | L2 | cells brute-forced (contact, no hit) |".into());
     line("|---|---|---|---|---|---|---|---|---|---|---|---|".into());
     for run in &r.runs {
-        let passes: Vec<String> = run
-            .passes
-            .iter()
-            .map(|p| format!("{} {:.2}", p.stage, p.seconds))
-            .collect();
+        let passes = busy(&run.passes);
         line(format!(
             "| {}{} | {:.2} | {} | {:.1} | {:.4} | {:+.4} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {} |",
             run.label,

@@ -17,7 +17,6 @@ use super::find::Seam;
 use super::metric::{samples, taps};
 use rayon::prelude::*;
 use serde::Serialize;
-use std::collections::HashMap;
 
 /// lambda: the weight of a seam constraint against one texel's data term.
 /// Larger agrees better and converges slower (the system's condition
@@ -107,35 +106,44 @@ pub fn stitch(
     data_weight: &(dyn Fn(u32) -> f64 + Sync),
     baked: impl Fn(u32, &mut [f32]) + Sync,
 ) -> (Vec<u32>, Vec<f32>, StitchStats) {
-    let mut system = System::new(fixed);
-    // Two-sided points (side A positive, side B negative), then anchors:
-    // each a row's taps (texel, weight), its anchor and scale.
+    // Each row's taps (texel, weight), its anchor and scale, built in
+    // parallel and pushed in order (the unknowns are numbered in the order
+    // they first appear): two-sided points (side A positive, side B
+    // negative), then anchors.
     let tapped = |uv: [f32; 2], scale: f64| {
         taps(uv, width, height)
             .into_iter()
             .map(move |(t, w)| (t, scale * w as f64))
     };
-    let two_sided = seams.iter().flat_map(|seam| {
-        samples(seam, width, height, POINTS_PER_TEXEL).map(move |t| {
-            let (uva, uvb) = seam.at(t);
-            let both: Vec<(u32, f64)> = tapped(uva, seam_scale)
-                .chain(tapped(uvb, -seam_scale))
-                .collect();
-            (both, None, seam_scale)
+    type RowTaps = (Vec<(u32, f64)>, Option<usize>, f64);
+    let two_sided: Vec<RowTaps> = seams
+        .par_iter()
+        .flat_map_iter(|seam| {
+            samples(seam, width, height, POINTS_PER_TEXEL).map(move |t| {
+                let (uva, uvb) = seam.at(t);
+                let both: Vec<(u32, f64)> = tapped(uva, seam_scale)
+                    .chain(tapped(uvb, -seam_scale))
+                    .collect();
+                (both, None, seam_scale)
+            })
         })
-    });
+        .collect();
     // Anchor k: of `anchors`, then of `fitted`.
     let anchor_at = |k: usize| match k.checked_sub(anchors.len()) {
         None => &anchors[k],
         Some(f) => &fitted[f],
     };
-    let one_sided = (0..anchors.len() + fitted.len()).map(|k| {
-        let a = anchor_at(k);
-        let seam = if k < anchors.len() { seam_scale } else { 1.0 };
-        let scale = seam * a.weight as f64;
-        (tapped(a.uv, scale).collect(), Some(k), scale)
-    });
-    for (row_taps, anchor, scale) in two_sided.chain(one_sided) {
+    let one_sided: Vec<RowTaps> = (0..anchors.len() + fitted.len())
+        .into_par_iter()
+        .map(|k| {
+            let a = anchor_at(k);
+            let seam = if k < anchors.len() { seam_scale } else { 1.0 };
+            let scale = seam * a.weight as f64;
+            (tapped(a.uv, scale).collect(), Some(k), scale)
+        })
+        .collect();
+    let mut system = System::new(fixed);
+    for (row_taps, anchor, scale) in two_sided.into_iter().chain(one_sided) {
         system.push(row_taps, anchor, scale);
     }
     system.solve_weighted(channels, data_weight, baked, |k| &anchor_at(k).target)
@@ -148,7 +156,8 @@ pub fn stitch(
 /// (row(x) - target)^2 per channel ([`SEAM_WEIGHT`] = lambda).
 pub struct System<F: Fn(u32) -> bool> {
     fixed: F,
-    unknown_of: HashMap<u32, u32>,
+    /// Per texel id, its unknown (`u32::MAX`: none yet); grown on demand.
+    unknown_of: Vec<u32>,
     texel_of: Vec<u32>,
     rows: Vec<Row>,
 }
@@ -157,7 +166,7 @@ impl<F: Fn(u32) -> bool> System<F> {
     pub fn new(fixed: F) -> Self {
         System {
             fixed,
-            unknown_of: HashMap::new(),
+            unknown_of: Vec::new(),
             texel_of: Vec::new(),
             rows: Vec::new(),
         }
@@ -188,13 +197,15 @@ impl<F: Fn(u32) -> bool> System<F> {
             let (list, id) = if (self.fixed)(texel) {
                 (&mut row.fixed, texel)
             } else {
-                let next = self.texel_of.len() as u32;
-                let texel_of = &mut self.texel_of;
-                let u = *self.unknown_of.entry(texel).or_insert_with(|| {
-                    texel_of.push(texel);
-                    next
-                });
-                (&mut row.free, u)
+                if texel as usize >= self.unknown_of.len() {
+                    self.unknown_of.resize(texel as usize + 1, u32::MAX);
+                }
+                let slot = &mut self.unknown_of[texel as usize];
+                if *slot == u32::MAX {
+                    *slot = self.texel_of.len() as u32;
+                    self.texel_of.push(texel);
+                }
+                (&mut row.free, *slot)
             };
             match list.iter_mut().find(|e| e.0 == id) {
                 Some(e) => e.1 += w,
@@ -256,29 +267,39 @@ impl<F: Fn(u32) -> bool> System<F> {
                 }
             }
         }
-        let mut component_of: HashMap<u32, usize> = HashMap::new();
+        // Per root, its component; per unknown, its index in it.
+        let mut component_of: Vec<u32> = vec![u32::MAX; n];
+        let mut local_of: Vec<u32> = vec![0; n];
         let mut members: Vec<Vec<u32>> = Vec::new();
         for u in 0..n as u32 {
-            let r = root(&mut parent, u);
-            let c = *component_of.entry(r).or_insert_with(|| {
+            let r = root(&mut parent, u) as usize;
+            if component_of[r] == u32::MAX {
+                component_of[r] = members.len() as u32;
                 members.push(Vec::new());
-                members.len() - 1
-            });
-            members[c].push(u);
+            }
+            let c = &mut members[component_of[r] as usize];
+            local_of[u as usize] = c.len() as u32;
+            c.push(u);
         }
         let mut component_rows: Vec<Vec<usize>> = vec![Vec::new(); members.len()];
         for (i, row) in rows.iter().enumerate() {
-            let r = root(&mut parent, row.free[0].0);
-            component_rows[component_of[&r]].push(i);
+            let r = root(&mut parent, row.free[0].0) as usize;
+            component_rows[component_of[r] as usize].push(i);
         }
 
         // Each component: local indices, its baked values, the solve.
-        let solved: Vec<(Vec<u32>, Vec<f32>, usize, bool)> = members
+        // Largest components first (their rows times iterations are most
+        // of the work), one per task, so no worker is left with a large
+        // one at the end; the results go back into component order.
+        let mut order: Vec<usize> = (0..members.len()).collect();
+        order.sort_by_key(|&c| std::cmp::Reverse(component_rows[c].len()));
+        // (component, (its texels, their values, iterations, converged))
+        type Solved = (usize, (Vec<u32>, Vec<f32>, usize, bool));
+        let mut solved: Vec<Solved> = order
             .par_iter()
-            .zip(&component_rows)
-            .map(|(members, row_ids)| {
-                let local: HashMap<u32, usize> =
-                    members.iter().enumerate().map(|(i, &u)| (u, i)).collect();
+            .with_max_len(1)
+            .map(|&component| {
+                let (members, row_ids) = (&members[component], &component_rows[component]);
                 let c = channels;
                 // Each row's free part in local indices, and what its fixed
                 // texels add per channel.
@@ -286,7 +307,11 @@ impl<F: Fn(u32) -> bool> System<F> {
                 let (rows, constants): (Vec<LocalRow>, Vec<Vec<f64>>) = row_ids
                     .iter()
                     .map(|&r| {
-                        let free = rows[r].free.iter().map(|&(u, w)| (local[&u], w)).collect();
+                        let free = rows[r]
+                            .free
+                            .iter()
+                            .map(|&(u, w)| (local_of[u as usize] as usize, w))
+                            .collect();
                         let mut k = vec![0.0f64; c];
                         for &(t, w) in &rows[r].fixed {
                             baked(t, &mut value);
@@ -350,9 +375,10 @@ impl<F: Fn(u32) -> bool> System<F> {
                 }
                 let (x, most, converged) = conjugate_gradients(&apply, &diagonal, &b, &x0, c);
                 let out: Vec<f32> = x.iter().map(|&v| v as f32).collect();
-                (texels, out, most, converged)
+                (component, (texels, out, most, converged))
             })
             .collect();
+        solved.sort_unstable_by_key(|&(c, _)| c);
         let mut stats = StitchStats {
             unknowns: n,
             constraints: rows.len(),
@@ -361,7 +387,7 @@ impl<F: Fn(u32) -> bool> System<F> {
             converged: true,
         };
         let (mut texels, mut values) = (Vec::with_capacity(n), Vec::with_capacity(n * channels));
-        for (t, out, iterations, converged) in solved {
+        for (_, (t, out, iterations, converged)) in solved {
             stats.max_iterations = stats.max_iterations.max(iterations);
             stats.converged &= converged;
             texels.extend(t);

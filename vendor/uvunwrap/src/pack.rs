@@ -376,6 +376,49 @@ pub(crate) fn pack(
     }
 }
 
+/// Packing trials per round of [`pack_auto`]'s search, run in parallel.
+/// Fixed, not the thread count, so the result never depends on it.
+const SEARCH_TRIALS: usize = 4;
+
+/// How far around a predicted density a round's candidates lie (a factor).
+const PREDICTION_WINDOW: f64 = 1.01;
+
+/// A round's densities in (lo, hi), ascending: [`SEARCH_TRIALS`] of them
+/// within [`PREDICTION_WINDOW`] of `prediction` where it lies inside the
+/// bracket (the prediction itself among them), else spread over it
+/// (geometrically once something fits, as fractions of `hi` before).
+/// Empty when the bracket has no room left.
+fn round_candidates(lo: f64, hi: f64, prediction: Option<f64>) -> Vec<f64> {
+    let k = SEARCH_TRIALS;
+    if !(hi > 0.0) {
+        return Vec::new();
+    }
+    if !(lo > 0.0) {
+        return (1..=k).map(|i| hi * (0.2 + 0.6 * i as f64 / k as f64)).collect();
+    }
+    let inner = |a: f64, b: f64| -> Vec<f64> {
+        (1..=k)
+            .map(|i| a * (b / a).powf(i as f64 / (k + 1) as f64))
+            .filter(|&s| s > lo && s < hi)
+            .collect()
+    };
+    match prediction.filter(|&s| s > lo * 1.0005 && s < hi / 1.0005) {
+        Some(s) => {
+            let (a, b) = ((s / PREDICTION_WINDOW).max(lo), (s * PREDICTION_WINDOW).min(hi));
+            let mut c = inner(a, b);
+            // The prediction itself replaces the candidate nearest it.
+            if let Some(near) = (0..c.len()).min_by(|&i, &j| {
+                (c[i] / s).ln().abs().total_cmp(&(c[j] / s).ln().abs())
+            }) {
+                c[near] = s;
+            }
+            c.sort_by(f64::total_cmp);
+            c
+        }
+        None => inner(lo, hi),
+    }
+}
+
 /// A packing that fits one page.
 struct Fit {
     prep: Prepared,
@@ -456,47 +499,46 @@ fn pack_auto(p: &Packer<'_>, size: u32, tolerance: f64) -> Result<PackResult, Er
             lo = 0.0;
         }
     }
-    // Narrow [lo, hi) until within `tolerance`: bisect, or for fast packing jump
-    // to the density predicted to just fill the page (used area grows with
-    // the density squared) when that is inside the bracket. That halves
-    // the trials to reach the page edge; heights step by whole rows near
-    // it, so the last few trials are bisection either way.
-    let (mut next, mut step) = (0.0, None);
-    // A step small enough that failing there ends the search.
-    let small = 1.0 + 0.8 * (tolerance - 1.0);
-    for _ in 0..24 {
+    // Narrow [lo, hi) until within `tolerance`, in rounds of
+    // `SEARCH_TRIALS` trials packed in parallel (a trial's fold is serial,
+    // so rounds of independent trials are what spreads the search over
+    // the threads; the candidates depend on the bracket only, so the
+    // result is the same on any thread count). A round's candidates:
+    // around the density predicted to just fill the page (used area grows
+    // with the density squared) when a fast packing gave one inside the
+    // bracket, within `PREDICTION_WINDOW` of it; else spread geometrically
+    // over the bracket (over (0, hi) linearly before anything fits). The
+    // results are read in ascending density until the first that fails,
+    // as greedy packing is taken to be monotone in the density.
+    let mut prediction: Option<f64> = None;
+    for _ in 0..8 {
         if best.is_some() && hi < lo * tolerance {
             break;
         }
-        let mid = if lo > 0.0 { (lo * hi).sqrt() } else { 0.5 * hi };
-        let s = if next > lo * 1.001 && next < hi / 1.001 {
-            next
-        } else if let Some(k) = step.filter(|&k| lo * k < hi) {
-            lo * k
-        } else {
-            mid
-        };
-        p.ctx.advance(Stage::Packing, 1, None)?;
-        let (fit, used) = trial(s)?;
-        next = match used {
-            Some(used) if used > 0 => s * (size as f64 / used as f64).sqrt(),
-            _ => 0.0,
-        };
-        // After a fit with no useful prediction, step up a little rather
-        // than bisect towards a far upper bound: by `small` if the fit all
-        // but filled the page, a little further if it only fit by filling
-        // below the frontline.
-        step = match (&fit, used) {
-            (Some(_), Some(_)) if next <= s * 1.001 => Some(small),
-            (Some(_), None) => Some(small.max(1.01)),
-            _ => None,
-        };
-        match fit {
-            Some(fit) => {
-                lo = s;
-                best = Some(fit);
+        let candidates = round_candidates(lo, hi, prediction);
+        if candidates.is_empty() {
+            break;
+        }
+        for _ in &candidates {
+            p.ctx.advance(Stage::Packing, 1, None)?;
+        }
+        let results = par::map_ref(&candidates, |&s| trial(s));
+        prediction = None;
+        for (s, result) in candidates.into_iter().zip(results) {
+            let (fit, used) = result?;
+            if let Some(used) = used.filter(|&u| u > 0) {
+                prediction = Some(s * (size as f64 / used as f64).sqrt());
             }
-            None => hi = s,
+            match fit {
+                Some(fit) => {
+                    lo = s;
+                    best = Some(fit);
+                }
+                None => {
+                    hi = s;
+                    break;
+                }
+            }
         }
     }
     if let Some(fit) = best {
@@ -576,4 +618,36 @@ fn pack_pages(p: &Packer<'_>, s: f64, size: u32) -> Result<PackResult, Error> {
         .place(&shapes, size, size, usize::MAX)
         .expect("every item fits an empty page");
     Ok(p.finish(prep, layout, size, size, s))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_candidates_lie_in_the_bracket_ascending() {
+        // Before anything fits: fractions of the upper bound.
+        let c = round_candidates(0.0, 100.0, None);
+        for (got, want) in c.iter().zip([35.0, 50.0, 65.0, 80.0]) {
+            assert!((got - want).abs() < 1e-9, "{c:?}");
+        }
+        // A bracket and no prediction: geometric, strictly inside.
+        let c = round_candidates(10.0, 40.0, None);
+        assert_eq!(c.len(), SEARCH_TRIALS);
+        let ratios: Vec<f64> = c.windows(2).map(|w| w[1] / w[0]).collect();
+        for r in &ratios {
+            assert!((r - 40f64.powf(0.2) / 10f64.powf(0.2)).abs() < 1e-9, "{ratios:?}");
+        }
+        assert!(c[0] > 10.0 && c[3] < 40.0);
+        // A prediction inside: it is tried, the rest within the window.
+        let c = round_candidates(300.0, 400.0, Some(350.0));
+        assert!(c.contains(&350.0), "{c:?}");
+        assert!(c.windows(2).all(|w| w[0] < w[1]));
+        assert!(c.iter().all(|&s| s > 350.0 / 1.0101 && s < 350.0 * 1.0101));
+        // Clipped by a near bound: only what lies inside.
+        let c = round_candidates(349.9, 351.0, Some(350.5));
+        assert!(c.iter().all(|&s| s > 349.9 && s < 351.0), "{c:?}");
+        // A prediction outside the bracket is ignored.
+        assert_eq!(round_candidates(10.0, 40.0, Some(50.0)), round_candidates(10.0, 40.0, None));
+    }
 }
