@@ -19,8 +19,7 @@
 
 use super::ReceiverRays;
 use crate::atlas::Receivers;
-use crate::trace::Tracer;
-use rayon::prelude::*;
+use crate::trace::{Closest, Tracer, for_each_receiver_query};
 
 /// Rays per receiver, at most.
 pub const VALIDITY_RAYS: u32 = 16;
@@ -74,14 +73,32 @@ pub fn inside_geometry(
     if !tracer.has_single_sided() {
         return vec![false; receivers.len()];
     }
-    (0..receivers.len())
-        .into_par_iter()
-        .with_min_len(256)
-        .map(|r| {
-            let rays = ReceiverRays::new(receivers, r, seed);
-            finish_inside(&rays, tracer, max_distance, 0, BackFaces::default())
-        })
-        .collect()
+    // Two rounds of batches: the probe, then the rest of the test where
+    // the probe saw a back face (the rays [`BackFaces::counts`]).
+    let mut counts = vec![BackFaces::default(); receivers.len()];
+    for (from, to) in [(0, VALIDITY_PROBE), (VALIDITY_PROBE, VALIDITY_RAYS)] {
+        for_each_receiver_query::<Closest, BackFaces>(
+            tracer,
+            &mut counts,
+            256,
+            |r, count, batch| {
+                let rays = ReceiverRays::new(receivers, r, seed);
+                for i in (from..to).take_while(|&i| count.counts(i)) {
+                    let d = rays.direction(i);
+                    if d.dot(rays.geo_normal) > 0.0 {
+                        batch.push(rays.origin, d, max_distance);
+                    }
+                }
+            },
+            |_, count, directions, hits| {
+                for (&d, hit) in directions.iter().zip(hits) {
+                    count.add(hit.is_some_and(|h| tracer.is_back_face(h, d)));
+                }
+            },
+            &|_| {},
+        );
+    }
+    counts.iter().map(BackFaces::inside).collect()
 }
 
 /// Whether the receiver of `rays` is inside, its test continued from ray

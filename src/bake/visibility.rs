@@ -25,7 +25,7 @@ use super::{BakeParams, ReceiverRays};
 use crate::atlas::Receivers;
 use crate::sample::uniform_hemisphere;
 use crate::sh::{self, VIS_COUNT};
-use crate::trace::Tracer;
+use crate::trace::{RayBatch, Tracer, for_each_receiver};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -33,7 +33,7 @@ use rayon::prelude::*;
 /// the sheared method's sparse pass stream 1).
 pub const VISIBILITY_STREAM: u64 = 2;
 
-/// Receivers per parallel work item.
+/// Receivers per batch of rays (and parallel work item).
 const CHUNK: usize = 64;
 
 /// The visibility layer of every receiver, and the rays it cost.
@@ -52,34 +52,42 @@ fn tilt(n: Vec3, geo: Vec3) -> f32 {
     if a.is_finite() { a } else { 0.0 }
 }
 
-/// Receiver `r`'s occluded share above its geometric plane (less) from
-/// `rays` stratified uniform rays around its shading normal.
-pub fn share(
-    receivers: &Receivers,
-    r: usize,
-    tracer: &Tracer,
-    rays: u32,
-    p: &BakeParams,
-) -> [f32; VIS_COUNT] {
-    let (n, geo) = (receivers.normal[r], receivers.geo_normal[r]);
+/// Receiver `r`'s `rays` stratified uniform rays around its shading
+/// normal, those at or below its geometric plane left out (they add
+/// nothing: [`share`] counts the solid angle above).
+fn emit_receiver(receivers: &Receivers, r: usize, rays: u32, p: &BakeParams, batch: &mut RayBatch) {
+    let geo = receivers.geo_normal[r];
     let sequence = ReceiverRays::with_stream(receivers, r, p.seed, VISIBILITY_STREAM);
-    let (mut above, mut visible) = (0u32, 0u32);
-    let mut occluded = [0.0f32; VIS_COUNT];
-    let mut all = [0.0f32; VIS_COUNT];
     for i in 0..rays {
         let dir = sequence
             .frame
             .to_world(uniform_hemisphere(sequence.point(i)))
             .normalize();
-        if dir.dot(geo) <= 0.0 {
-            continue;
+        if dir.dot(geo) > 0.0 {
+            batch.push(sequence.origin, dir, p.max_distance);
         }
-        above += 1;
+    }
+}
+
+/// Receiver `r`'s occluded share above its geometric plane (less), from
+/// its rays above the plane ([`emit_receiver`]'s) and whether each is
+/// occluded.
+pub fn share(
+    receivers: &Receivers,
+    r: usize,
+    directions: &[Vec3],
+    occluded_rays: &[bool],
+) -> [f32; VIS_COUNT] {
+    let (n, geo) = (receivers.normal[r], receivers.geo_normal[r]);
+    let (above, mut visible) = (directions.len() as u32, 0u32);
+    let mut occluded = [0.0f32; VIS_COUNT];
+    let mut all = [0.0f32; VIS_COUNT];
+    for (&dir, &hit) in directions.iter().zip(occluded_rays) {
         let y = sh::basis16(dir);
         for (a, y) in all.iter_mut().zip(y) {
             *a += y;
         }
-        if tracer.receiver_visible(sequence.origin, geo, dir, p.max_distance) {
+        if !hit {
             visible += 1;
         } else {
             for (o, y) in occluded.iter_mut().zip(y) {
@@ -109,12 +117,14 @@ pub fn shares(
     p: &BakeParams,
 ) -> Vec<[f32; VIS_COUNT]> {
     let mut out = vec![[0.0f32; VIS_COUNT]; receivers.len()];
-    out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
-        for (k, o) in out.iter_mut().enumerate() {
-            let r = c * CHUNK + k;
-            *o = share(receivers, r, tracer, rays(r), p);
-        }
-    });
+    for_each_receiver(
+        tracer,
+        &mut out,
+        CHUNK,
+        |r, _, batch| emit_receiver(receivers, r, rays(r), p, batch),
+        |r, out, directions, occluded| *out = share(receivers, r, directions, occluded),
+        &|_| {},
+    );
     out
 }
 

@@ -11,8 +11,7 @@ use super::sums::{CHUNK, RaySums};
 use crate::atlas::Receivers;
 use crate::bake::{BakeParams, ReceiverRays};
 use crate::sh;
-use crate::trace::Tracer;
-use rayon::prelude::*;
+use crate::trace::{Tracer, for_each_receiver};
 
 /// Traces the rays from `pre_rays` to `rays[r]` of every receiver r into
 /// `sums`; `filtered(r)`: its sums leave out the rays below the plane.
@@ -28,45 +27,57 @@ pub fn adaptive_pass(
     p: &BakeParams,
     progress: &(dyn Fn(u64) + Sync),
 ) {
-    sums.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(c, sums)| {
-            for (k, s) in sums.iter_mut().enumerate() {
-                let r = c * CHUNK + k;
-                let ray = ReceiverRays::new(receivers, r, p.seed);
-                let above_only = filtered(r);
-                // (`below` counts the pre-pass's rays below so far: none,
-                // nothing to take out.)
-                if above_only && s.below > 0 {
-                    // The pre-pass summed its rays below into both sums.
-                    for i in 0..pre_rays {
-                        let d = ray.direction(i);
-                        if d.dot(ray.geo_normal) <= 0.0 {
-                            sh::accumulate(&mut s.sh, -1.0, d);
-                            sh::accumulate(&mut s.all, -1.0, d);
-                        }
-                    }
+    for_each_receiver(
+        tracer,
+        sums,
+        CHUNK,
+        |r, _, batch| {
+            let ray = ReceiverRays::new(receivers, r, p.seed);
+            let above_only = filtered(r);
+            for i in pre_rays..rays[r] {
+                let d = ray.direction(i);
+                // Below the surface: occluded without tracing
+                // ([`Tracer::receiver_visible`]'s test; a filtered
+                // receiver only counts those).
+                if d.dot(ray.geo_normal) > 0.0 {
+                    batch.push(ray.origin, d, p.max_distance);
+                } else if !above_only {
+                    batch.push_blocked(d);
                 }
-                for i in pre_rays..rays[r] {
+            }
+        },
+        |r, s, directions, occluded| {
+            let ray = ReceiverRays::new(receivers, r, p.seed);
+            let above_only = filtered(r);
+            // (`below` counts the pre-pass's rays below so far: none,
+            // nothing to take out.)
+            if above_only && s.below > 0 {
+                // The pre-pass summed its rays below into both sums.
+                for i in 0..pre_rays {
                     let d = ray.direction(i);
-                    // Below the surface: occluded without tracing
-                    // ([`Tracer::receiver_visible`]'s test, made here
-                    // because a filtered receiver only counts those).
-                    let below = d.dot(ray.geo_normal) <= 0.0;
-                    if below {
-                        s.below += 1;
-                        if above_only {
-                            continue;
-                        }
-                    }
-                    sh::accumulate(&mut s.all, 1.0, d);
-                    if below || tracer.occluded(ray.origin, d, p.max_distance) {
-                        sh::accumulate(&mut s.sh, 1.0, d);
-                    } else {
-                        s.visible += 1;
+                    if d.dot(ray.geo_normal) <= 0.0 {
+                        sh::accumulate(&mut s.sh, -1.0, d);
+                        sh::accumulate(&mut s.all, -1.0, d);
                     }
                 }
             }
-            progress(sums.len() as u64);
-        });
+            // A filtered receiver's rays below were not cast: counted only.
+            let cast = directions.len() as u32;
+            if above_only {
+                s.below += rays[r].saturating_sub(pre_rays) - cast;
+            }
+            for (&d, &hit) in directions.iter().zip(occluded) {
+                if !above_only && d.dot(ray.geo_normal) <= 0.0 {
+                    s.below += 1;
+                }
+                sh::accumulate(&mut s.all, 1.0, d);
+                if hit {
+                    sh::accumulate(&mut s.sh, 1.0, d);
+                } else {
+                    s.visible += 1;
+                }
+            }
+        },
+        progress,
+    );
 }

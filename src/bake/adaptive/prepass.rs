@@ -33,7 +33,8 @@ use crate::atlas::Receivers;
 use crate::bake::validity::{self, BackFaces};
 use crate::bake::{BakeParams, ReceiverRays};
 use crate::sh;
-use crate::trace::Tracer;
+use crate::trace::{Closest, Hit, RayBatch, Tracer, for_each_receiver_query};
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// What the pre-pass found, per receiver.
@@ -48,7 +49,30 @@ pub struct PrePass {
     pub inside: Vec<bool>,
 }
 
-/// Traces the pre-pass (see the module doc).
+/// A receiver's running state through the pre-pass's rounds.
+/// Its strata seen occluded are bits of `occluded` (one word per 64 strata
+/// the pre-pass has).
+struct Running<'a> {
+    sums: RaySums,
+    z: f32,
+    faces: BackFaces,
+    occluded: &'a mut [u64],
+}
+
+/// Where the rounds of rays end: a receiver's queries for a round are
+/// chosen from what its earlier rounds found (the validity test goes on
+/// past its probe only where the probe saw a back face; a receiver in
+/// contact asks only for any hit).
+fn round_ends(pre_rays: u32) -> Vec<u32> {
+    let mut ends: Vec<u32> = [validity::VALIDITY_PROBE, 2 * validity::VALIDITY_PROBE]
+        .into_iter()
+        .filter(|&e| e < pre_rays)
+        .collect();
+    ends.push(pre_rays);
+    ends
+}
+
+/// Traces the pre-pass (see the module doc), in rounds of batches.
 pub fn pre_pass(
     receivers: &Receivers,
     tracer: &Tracer,
@@ -57,76 +81,109 @@ pub fn pre_pass(
     p: &BakeParams,
 ) -> PrePass {
     let n = receivers.len();
-    let mut sums = vec![RaySums::default(); n];
-    let mut own_z = vec![f32::INFINITY; n];
-    let mut inside = vec![false; n];
-    let mut crossings = vec![0u16; n];
     let strata = Strata::of(o.pre_rays);
     let exact = exact_depth(&receivers.footprint, o, p.max_distance);
     let contact = contact_depth(&receivers.footprint, o);
     // Without single-sided triangles no receiver is inside: no face to test.
     let test_faces = fill_inside && tracer.has_single_sided();
-    sums.par_chunks_mut(CHUNK)
-        .zip(own_z.par_chunks_mut(CHUNK))
-        .zip(inside.par_chunks_mut(CHUNK))
-        .zip(crossings.par_chunks_mut(CHUNK))
-        .enumerate()
-        .for_each(|(c, (((sums, zs), inside), crossings))| {
-            for (k, (((s, z), inside), crossings)) in sums
-                .iter_mut()
-                .zip(zs)
-                .zip(inside)
-                .zip(crossings)
-                .enumerate()
-            {
-                let r = c * CHUNK + k;
-                let rays = ReceiverRays::new(receivers, r, p.seed);
-                let mut faces = BackFaces::default();
-                let mut occluded = [0u64; STRATA_WORDS];
-                for i in 0..o.pre_rays {
-                    let u = rays.point(i);
-                    let d = rays.direction_of(u);
-                    let stratum = strata.index(u);
-                    sh::accumulate(&mut s.all, 1.0, d);
-                    if d.dot(rays.geo_normal) <= 0.0 {
-                        // Below the surface: occluded, by nothing at a depth.
-                        s.below += 1;
-                        sh::accumulate(&mut s.sh, 1.0, d);
-                        occluded[stratum / 64] |= 1 << (stratum % 64);
-                        continue;
-                    }
-                    // The validity test needs the closest hit's face; z_min
-                    // only distances below the running z_min and `exact`.
-                    let hit = if test_faces && faces.counts(i) {
-                        let hit = tracer.closest_hit_side(rays.origin, d, p.max_distance);
-                        faces.add(matches!(hit, Some((_, true))));
-                        hit.map(|(t, _)| t)
-                    } else if *z < contact {
-                        // In contact already: a nearer hit bounds nothing
-                        // more, so any hit will do.
-                        tracer
-                            .occluded(rays.origin, d, p.max_distance)
-                            .then_some(*z)
-                    } else {
-                        tracer.hit_depth_within(rays.origin, d, p.max_distance, z.min(exact))
-                    };
-                    match hit {
-                        Some(t) => {
-                            *z = z.min(t);
-                            sh::accumulate(&mut s.sh, 1.0, d);
-                            occluded[stratum / 64] |= 1 << (stratum % 64);
-                        }
-                        None => s.visible += 1,
-                    }
+    let words = (o.pre_rays as usize).div_ceil(64).clamp(1, STRATA_WORDS);
+    let mut bits = vec![0u64; n * words];
+    let mut running: Vec<Running> = bits
+        .chunks_mut(words)
+        .map(|occluded| Running {
+            sums: RaySums::default(),
+            z: f32::INFINITY,
+            faces: BackFaces::default(),
+            occluded,
+        })
+        .collect();
+    let mut from = 0;
+    for end in round_ends(o.pre_rays) {
+        let emit = |r: usize, s: &Running, batch: &mut RayBatch| {
+            let rays = ReceiverRays::new(receivers, r, p.seed);
+            for i in from..end {
+                let d = rays.direction(i);
+                if d.dot(rays.geo_normal) <= 0.0 {
+                    batch.push_blocked(d);
+                } else if test_faces && s.faces.counts(i) {
+                    // The validity test needs the closest hit's face.
+                    batch.push(rays.origin, d, p.max_distance);
+                } else if s.z < contact {
+                    // In contact already: a nearer hit bounds nothing
+                    // more, so any hit will do (cut at once).
+                    batch.push_within(rays.origin, d, p.max_distance, 0.0);
+                } else {
+                    // z_min needs distances below `exact` only.
+                    batch.push_within(rays.origin, d, p.max_distance, exact);
                 }
-                *crossings = strata.crossings(&occluded).min(u16::MAX as u32) as u16;
-                *inside = test_faces
-                    && validity::finish_inside(&rays, tracer, p.max_distance, o.pre_rays, faces);
             }
-        });
+        };
+        let consume = |r: usize, s: &mut Running, dirs: &[Vec3], hits: &[Option<Hit>]| {
+            let geo = receivers.geo_normal[r];
+            let rays = ReceiverRays::new(receivers, r, p.seed);
+            for (i, (&d, &hit)) in (from..end).zip(dirs.iter().zip(hits)) {
+                let stratum = strata.index(rays.point(i));
+                sh::accumulate(&mut s.sums.all, 1.0, d);
+                if d.dot(geo) <= 0.0 {
+                    // Below the surface: occluded, by nothing at a depth.
+                    s.sums.below += 1;
+                    sh::accumulate(&mut s.sums.sh, 1.0, d);
+                    s.occluded[stratum / 64] |= 1 << (stratum % 64);
+                    continue;
+                }
+                // What the ray's query in sequence order returns: the
+                // validity test's full closest hit; in contact, any hit
+                // at the running z_min; else the distance below the
+                // running z_min and `exact` (the batch's cut at `exact`
+                // or deeper gives it exactly, [`Hit::distance_within`]).
+                let t_max = p.max_distance;
+                let depth = if test_faces && s.faces.counts(i) {
+                    s.faces.add(hit.is_some_and(|h| tracer.is_back_face(h, d)));
+                    Some(t_max)
+                } else if s.z < contact {
+                    None
+                } else {
+                    Some(s.z.min(exact))
+                };
+                match hit {
+                    Some(h) => {
+                        let t = depth.map_or(s.z, |depth| h.distance_within(t_max, depth));
+                        s.z = s.z.min(t);
+                        sh::accumulate(&mut s.sums.sh, 1.0, d);
+                        s.occluded[stratum / 64] |= 1 << (stratum % 64);
+                    }
+                    None => s.sums.visible += 1,
+                }
+            }
+        };
+        for_each_receiver_query::<Closest, Running>(
+            tracer,
+            &mut running,
+            CHUNK,
+            emit,
+            consume,
+            &|_| {},
+        );
+        from = end;
+    }
+    let finish = |r: usize, s: &Running| -> (u16, bool) {
+        let mut occluded = [0u64; STRATA_WORDS];
+        occluded[..words].copy_from_slice(s.occluded);
+        let crossings = strata.crossings(&occluded).min(u16::MAX as u32) as u16;
+        let rays = ReceiverRays::new(receivers, r, p.seed);
+        let inside = test_faces
+            && validity::finish_inside(&rays, tracer, p.max_distance, o.pre_rays, s.faces);
+        (crossings, inside)
+    };
+    let (crossings, inside): (Vec<u16>, Vec<bool>) = running
+        .par_iter()
+        .enumerate()
+        .with_min_len(CHUNK)
+        .map(|(r, s)| finish(r, s))
+        .unzip();
     PrePass {
-        sums,
-        own_z,
+        sums: running.iter().map(|s| s.sums).collect(),
+        own_z: running.iter().map(|s| s.z).collect(),
         crossings,
         inside,
     }

@@ -11,7 +11,7 @@ use crate::atlas::Receivers;
 use crate::bake::{Bake, BakeParams, ReceiverRays};
 use crate::error::Result;
 use crate::sample::{CELL_COUNT, square_cell};
-use crate::trace::Tracer;
+use crate::trace::{Closest, Tracer, for_each_receiver_query};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -39,38 +39,46 @@ pub fn sparse_pass(
     let mut cell = vec![0u8; n * k];
     let mut hit_normal = vec![Vec3::ZERO; n * k];
     const CHUNK: usize = 64;
-    dir.par_chunks_mut(k * CHUNK)
-        .zip(t.par_chunks_mut(k * CHUNK))
-        .zip(cell.par_chunks_mut(k * CHUNK))
-        .zip(hit_normal.par_chunks_mut(k * CHUNK))
-        .enumerate()
-        .for_each(|(c, (((dir, t), cell), hit_normal))| {
-            for (local, (((dirs, ts), cells), normals)) in dir
-                .chunks_mut(k)
-                .zip(t.chunks_mut(k))
-                .zip(cell.chunks_mut(k))
-                .zip(hit_normal.chunks_mut(k))
-                .enumerate()
-            {
-                let r = c * CHUNK + local;
-                let rays = ReceiverRays::with_stream(receivers, r, params.seed, SPARSE_STREAM);
-                let (origin, geo) = (rays.origin, rays.geo_normal);
-                for i in 0..k {
-                    let u = rays.point(i as u32);
-                    let d = rays.direction_of(u);
-                    cells[i] = square_cell(u) as u8;
-                    dirs[i] = d;
-                    ts[i] = if d.dot(geo) <= 0.0 {
-                        -1.0
-                    } else if let Some((t, ng)) = tracer.closest_hit_normal(origin, d, t_max) {
-                        normals[i] = ng;
-                        t
-                    } else {
-                        f32::INFINITY
-                    };
+    // Per receiver, its k samples' slots.
+    let mut slots: Vec<_> = dir
+        .chunks_mut(k.max(1))
+        .zip(t.chunks_mut(k.max(1)))
+        .zip(cell.chunks_mut(k.max(1)))
+        .zip(hit_normal.chunks_mut(k.max(1)))
+        .collect();
+    for_each_receiver_query::<Closest, _>(
+        tracer,
+        &mut slots,
+        CHUNK,
+        |r, _, batch| {
+            let rays = ReceiverRays::with_stream(receivers, r, params.seed, SPARSE_STREAM);
+            for i in 0..k {
+                let d = rays.direction(i as u32);
+                if d.dot(rays.geo_normal) <= 0.0 {
+                    batch.push_blocked(d);
+                } else {
+                    batch.push(rays.origin, d, t_max);
                 }
             }
-        });
+        },
+        |r, (((dirs, ts), cells), normals), directions, hits| {
+            let rays = ReceiverRays::with_stream(receivers, r, params.seed, SPARSE_STREAM);
+            for (i, (&d, &hit)) in directions.iter().zip(hits).enumerate() {
+                cells[i] = square_cell(rays.point(i as u32)) as u8;
+                dirs[i] = d;
+                ts[i] = if d.dot(rays.geo_normal) <= 0.0 {
+                    -1.0
+                } else if let Some(h) = hit {
+                    normals[i] = tracer.hit_normal(h);
+                    h.distance_within(t_max, t_max)
+                } else {
+                    f32::INFINITY
+                };
+            }
+        },
+        &|_| {},
+    );
+    drop(slots);
     Samples {
         per_receiver: k,
         dir,

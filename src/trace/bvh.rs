@@ -1,9 +1,11 @@
-//! Trace: one BVH over every occluder triangle, and robust ray origins.
+//! The CPU backend: one BVH over every occluder triangle.
 //!
-//! In: bake-space triangles. Out: a [`Tracer`] answering occlusion
-//! (any hit closer than `t_max`) and closest-hit queries. Both faces occlude.
-//! Built with obvhs as a compressed wide BVH (CWBVH) with triangles stored in
-//! leaf order, so traversal has no indirection.
+//! In: bake-space triangles. Out: a [`Tracer`] answering one ray at a time:
+//! occlusion (any hit closer than `t_max`) and closest-hit queries. Both
+//! faces occlude. Built with obvhs as a compressed wide BVH (CWBVH) with
+//! triangles stored in leaf order, so traversal has no indirection. The
+//! passes reach it through [`super::batch`]; the per-ray queries stay for
+//! the passes whose next ray depends on the last answer.
 
 use glam::{Vec3, Vec3A};
 use obvhs::{
@@ -15,27 +17,45 @@ use obvhs::{
 };
 use std::time::Duration;
 
+/// A closest-hit answer as traversed: the hit's parameter along the
+/// shifted ray (cut at the depth asked, see [`Tracer::trace_closest`]) and
+/// its triangle (in leaf order). Kept raw so that an answer traced with a
+/// cut at one depth gives, exactly, what a query cut at any smaller depth
+/// would have returned ([`Hit::distance_within`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    shifted: f32,
+    triangle: u32,
+}
+
+impl Hit {
+    /// Where a ray of max distance `t_max` cut at `depth` is cut, along
+    /// the shifted ray. (min/max, not clamp: no panic on a NaN or negative
+    /// t_max.)
+    #[inline]
+    fn cap(t_max: f32, depth: f32) -> f32 {
+        depth.min(t_max).max(0.0) + BOX_EPSILON_SHIFT
+    }
+
+    /// The hit's distance from the origin when it is below `depth`, else
+    /// `depth` (`depth` in [0, t_max]): what a query cut at `depth`
+    /// returns, for any `depth` up to the one the ray was traced with.
+    #[inline]
+    pub fn distance_within(self, t_max: f32, depth: f32) -> f32 {
+        if self.shifted >= Hit::cap(t_max, depth) {
+            depth.min(t_max).max(0.0)
+        } else {
+            self.shifted - BOX_EPSILON_SHIFT
+        }
+    }
+}
+
 /// Ray-tracing acceleration structure over the scene's occluders.
 pub struct Tracer {
     bvh: Option<CwBvh>,
     tris: Vec<RtTriangle>,
     /// Per triangle in leaf order: single-sided (its back face is "inside").
     single_sided: Vec<bool>,
-}
-
-/// Origin offset along the geometric normal, in bake units (scene diagonal
-/// = 1). Bake space keeps coordinates within [-0.5, 0.5], where an f32 ulp is
-/// at most 6e-8, so this is ~30 ulps: above the rounding of interpolated
-/// points and of the intersection test, far below any modelled gap.
-pub const ORIGIN_OFFSET: f32 = 2e-6;
-
-/// Fraction of the receiver's footprint added to [`ORIGIN_OFFSET`].
-pub const ORIGIN_OFFSET_FOOTPRINT: f32 = 1e-3;
-
-/// A ray origin lifted off the surface on the side of the geometric normal.
-#[inline]
-pub fn offset_origin(p: Vec3, geo_normal: Vec3, footprint: f32) -> Vec3 {
-    p + geo_normal * (ORIGIN_OFFSET + ORIGIN_OFFSET_FOOTPRINT * footprint)
 }
 
 /// obvhs's CWBVH node test clamps a box's entry distance to an absolute
@@ -154,12 +174,30 @@ impl Tracer {
     }
 
     /// The one traversal the closest-hit queries share: the closest hit in
-    /// (0, t_max] as (distance, triangle index), its distance exact below
-    /// `depth` and `depth` beyond (then the index is of the hit that cut
-    /// the ray there). A hit found beyond `depth` is taken as a hit at
-    /// `depth`, which shortens the ray there, so the rest of the traversal
-    /// looks for closer hits only. At `depth = t_max` nothing is cut: the
-    /// ray ends there anyway.
+    /// (0, t_max], cut at `depth` ([`Hit`]). A hit found beyond `depth` is
+    /// taken as a hit at `depth`, which shortens the ray there, so the rest
+    /// of the traversal looks for closer hits only (then the triangle is
+    /// the hit that cut the ray there). At `depth = t_max` nothing is cut:
+    /// the ray ends there anyway.
+    #[inline]
+    pub fn trace_closest(&self, origin: Vec3, dir: Vec3, t_max: f32, depth: f32) -> Option<Hit> {
+        let bvh = self.bvh.as_ref()?;
+        let ray = shifted_ray(origin, dir, t_max);
+        let cap = Hit::cap(t_max, depth);
+        let mut hit = RayHit::none();
+        bvh.ray_traverse(ray, &mut hit, |r, id| {
+            // A miss is infinite; a hit beyond the cap becomes one at it.
+            let t = self.tris[id].intersect(r);
+            if t.is_finite() { t.min(cap) } else { t }
+        })
+        .then_some(Hit {
+            shifted: hit.t,
+            triangle: hit.primitive_id,
+        })
+    }
+
+    /// The closest hit in (0, t_max] as (distance, triangle index), its
+    /// distance exact below `depth` and `depth` beyond.
     #[inline]
     fn closest_within(
         &self,
@@ -168,25 +206,17 @@ impl Tracer {
         t_max: f32,
         depth: f32,
     ) -> Option<(f32, usize)> {
-        let bvh = self.bvh.as_ref()?;
-        let ray = shifted_ray(origin, dir, t_max);
-        // (min/max, not clamp: no panic on a NaN or negative t_max.)
-        let depth = depth.min(t_max).max(0.0);
-        let cap = depth + BOX_EPSILON_SHIFT;
-        let mut hit = RayHit::none();
-        bvh.ray_traverse(ray, &mut hit, |r, id| {
-            // A miss is infinite; a hit beyond the cap becomes one at it.
-            let t = self.tris[id].intersect(r);
-            if t.is_finite() { t.min(cap) } else { t }
-        })
-        .then(|| {
-            let t = if hit.t >= cap {
-                depth
-            } else {
-                hit.t - BOX_EPSILON_SHIFT
-            };
-            (t, hit.primitive_id as usize)
-        })
+        let hit = self.trace_closest(origin, dir, t_max, depth)?;
+        Some((hit.distance_within(t_max, depth), hit.triangle as usize))
+    }
+
+    /// Whether `hit`, of a ray along `dir` traced without a cut (depth =
+    /// t_max), is the back face of a single-sided triangle (see
+    /// [`Tracer::back_face_hit`]).
+    #[inline]
+    pub fn is_back_face(&self, hit: Hit, dir: Vec3) -> bool {
+        let id = hit.triangle as usize;
+        self.single_sided[id] && Vec3::from(self.tris[id].ng).dot(dir) < 0.0
     }
 
     /// Whether the closest hit in (0, t_max] is the back face of a
@@ -203,10 +233,10 @@ impl Tracer {
     /// back face of a single-sided triangle (see [`Tracer::back_face_hit`]).
     #[inline]
     pub fn closest_hit_side(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, bool)> {
-        let (t, id) = self.closest(origin, dir, t_max)?;
+        let hit = self.trace_closest(origin, dir, t_max, t_max)?;
         Some((
-            t,
-            self.single_sided[id] && Vec3::from(self.tris[id].ng).dot(dir) < 0.0,
+            hit.distance_within(t_max, t_max),
+            self.is_back_face(hit, dir),
         ))
     }
 
@@ -225,8 +255,14 @@ impl Tracer {
     /// normal there (either side), if any.
     #[inline]
     pub fn closest_hit_normal(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
-        let (t, id) = self.closest(origin, dir, t_max)?;
-        Some((t, Vec3::from(self.tris[id].ng).normalize_or_zero()))
+        let hit = self.trace_closest(origin, dir, t_max, t_max)?;
+        Some((hit.distance_within(t_max, t_max), self.hit_normal(hit)))
+    }
+
+    /// The unit geometric normal of `hit`'s triangle (either side).
+    #[inline]
+    pub fn hit_normal(&self, hit: Hit) -> Vec3 {
+        Vec3::from(self.tris[hit.triangle as usize].ng).normalize_or_zero()
     }
 
     /// Distance to the closest hit in (0, t_max], if any.
@@ -264,6 +300,7 @@ mod tests {
 
     #[test]
     fn offset_origin_escapes_own_surface_at_grazing_angles() {
+        use crate::trace::offset_origin;
         let t = Tracer::new(&quad(0.0, 0.5));
         for k in 1..200 {
             let x = 0.49 * (k as f32 / 200.0 - 0.5) * 2.0;
