@@ -11,6 +11,7 @@
 
 use super::find::Seam;
 use crate::sh::SH_COUNT;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// The four texels and weights of a bilinear lookup at `uv` (glTF
@@ -103,30 +104,31 @@ pub fn points(
         }
         (a, s)
     };
-    let mut points = Vec::new();
-    for seam in seams {
-        let n = samples(seam, width, height, 2.0).count();
-        let weight = seam.length as f64 / n as f64;
-        for t in samples(seam, width, height, 2.0) {
-            let (a, b) = seam.at(t);
-            let ((aa, sa), (ab, sb)) = (look(a), look(b));
-            let sh_rms = (sa
-                .iter()
-                .zip(&sb)
-                .map(|(x, y)| (x - y).powi(2))
-                .sum::<f64>()
-                / SH_COUNT as f64)
-                .sqrt();
-            points.push(SeamPoint {
-                a,
-                b,
-                ao_jump: (aa - ab).abs(),
-                sh_rms,
-                weight,
-            });
-        }
-    }
-    points
+    seams
+        .par_iter()
+        .flat_map_iter(|seam| {
+            let n = samples(seam, width, height, 2.0).count();
+            let weight = seam.length as f64 / n as f64;
+            samples(seam, width, height, 2.0).map(move |t| {
+                let (a, b) = seam.at(t);
+                let ((aa, sa), (ab, sb)) = (look(a), look(b));
+                let sh_rms = (sa
+                    .iter()
+                    .zip(&sb)
+                    .map(|(x, y)| (x - y).powi(2))
+                    .sum::<f64>()
+                    / SH_COUNT as f64)
+                    .sqrt();
+                SeamPoint {
+                    a,
+                    b,
+                    ao_jump: (aa - ab).abs(),
+                    sh_rms,
+                    weight,
+                }
+            })
+        })
+        .collect()
 }
 
 /// [`SeamFigures`] of `seams` on images `ao` and `sh` of `width` x `height`.

@@ -27,6 +27,7 @@ pub use solve::Anchor;
 pub use solve::StitchStats;
 
 use crate::sh::{SH_COUNT, VIS_COUNT};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// What happens at smooth seams (`--seams`): `Stitch`, least-squares
@@ -173,17 +174,31 @@ pub fn stitch_page(
     // past it would coarsen every texel's quantization (Sponza 1024,
     // interior SH RMSE 0.0035 -> 0.0065 without this).
     let range = (!fitted.is_empty()).then(|| {
-        let mut lo = vec![f32::INFINITY; channels];
-        let mut hi = vec![f32::NEG_INFINITY; channels];
-        for t in 0..ao.len() {
+        let extend = |(mut lo, mut hi): (Vec<f32>, Vec<f32>), t: usize| {
             let vis = visibility.as_deref().map_or(&[][..], |v| &v[t][..]);
             let all = std::iter::once(&ao[t]).chain(&sh[t]).chain(vis);
             for (c, &x) in all.enumerate() {
                 lo[c] = lo[c].min(x);
                 hi[c] = hi[c].max(x);
             }
-        }
-        (lo, hi)
+            (lo, hi)
+        };
+        let empty = || {
+            (
+                vec![f32::INFINITY; channels],
+                vec![f32::NEG_INFINITY; channels],
+            )
+        };
+        // (min and max are exact in any order: the same on any thread count.)
+        (0..ao.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .fold(empty, extend)
+            .reduce(empty, |(lo, hi), (l2, h2)| {
+                let lo = lo.iter().zip(&l2).map(|(a, b)| a.min(*b)).collect();
+                let hi = hi.iter().zip(&h2).map(|(a, b)| a.max(*b)).collect();
+                (lo, hi)
+            })
     });
     let mut clamped = Vec::new();
     for (k, &t) in texels.iter().enumerate() {
