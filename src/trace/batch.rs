@@ -169,7 +169,7 @@ impl Tracer {
 
 /// Casts every receiver's rays as occlusion queries in batches, `chunk`
 /// receivers to a batch, the batches in parallel: `emit(r, state, batch)`
-/// pushes receiver r's rays, `consume(r, state, directions, occluded)`
+/// pushes receiver r's rays (and may note in its state what it decided), `consume(r, state, directions, occluded)`
 /// reads them back with their answers, in the order pushed (blocked rays
 /// answer occluded); `states[r]` is receiver r's. `progress` is told the
 /// receivers done.
@@ -177,7 +177,7 @@ pub fn for_each_receiver<S: Send>(
     tracer: &Tracer,
     states: &mut [S],
     chunk: usize,
-    emit: impl Fn(usize, &S, &mut RayBatch) + Sync,
+    emit: impl Fn(usize, &mut S, &mut RayBatch) + Sync,
     consume: impl Fn(usize, &mut S, &[Vec3], &[bool]) + Sync,
     progress: &(dyn Fn(u64) + Sync),
 ) {
@@ -190,7 +190,7 @@ pub fn for_each_receiver_query<Q: Query, S: Send>(
     tracer: &Tracer,
     states: &mut [S],
     chunk: usize,
-    emit: impl Fn(usize, &S, &mut RayBatch) + Sync,
+    emit: impl Fn(usize, &mut S, &mut RayBatch) + Sync,
     consume: impl Fn(usize, &mut S, &[Vec3], &[Q::Answer]) + Sync,
     progress: &(dyn Fn(u64) + Sync),
 ) {
@@ -200,7 +200,7 @@ pub fn for_each_receiver_query<Q: Query, S: Send>(
         |(batch, ends, answers), (c, states)| {
             batch.clear();
             ends.clear();
-            for (k, s) in states.iter().enumerate() {
+            for (k, s) in states.iter_mut().enumerate() {
                 emit(c * chunk + k, s, batch);
                 ends.push(batch.len());
             }

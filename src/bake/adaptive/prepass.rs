@@ -99,7 +99,7 @@ pub fn pre_pass(
         .collect();
     let mut from = 0;
     for end in round_ends(o.pre_rays) {
-        let emit = |r: usize, s: &Running, batch: &mut RayBatch| {
+        let emit = |r: usize, s: &mut Running, batch: &mut RayBatch| {
             let rays = ReceiverRays::new(receivers, r, p.seed);
             for i in from..end {
                 let d = rays.direction(i);

@@ -5,15 +5,16 @@
 //! In: [`Receivers`] in locality order, a [`Tracer`], [`ShearedOptions`],
 //! [`BakeParams`]. Out: [`Samples`], then a [`Bake`] and [`ShearedStats`].
 
-use super::receiver::{Pass, ReceiverResult, Scratch, filter_receiver};
+use super::receiver::{
+    CellSums, Pass, Pending, ReceiverResult, Scratch, emit_brute_force, filter_receiver, finish,
+};
 use super::types::{SPARSE_STREAM, Samples, ShearedOptions, ShearedStats};
 use crate::atlas::Receivers;
 use crate::bake::{Bake, BakeParams, ReceiverRays};
 use crate::error::Result;
 use crate::sample::{CELL_COUNT, square_cell};
-use crate::trace::{Closest, Tracer, for_each_receiver_query};
+use crate::trace::{Closest, Tracer, for_each_receiver, for_each_receiver_query};
 use glam::Vec3;
-use rayon::prelude::*;
 
 /// How far sparse rays are traced: the max distance plus the widest gather
 /// reach, so an occluder within the max distance of a *receiver* is found
@@ -98,19 +99,33 @@ pub fn filter_pass(
     params: &BakeParams,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Bake, ShearedStats)> {
-    let pass = Pass::new(receivers, samples, tracer, s, params)?;
+    let pass = Pass::new(receivers, samples, s, params)?;
     let n = receivers.len();
-    let results: Vec<ReceiverResult> = (0..n)
-        .into_par_iter()
-        .with_min_len(64)
-        .map_init(Scratch::new, |scratch, r| {
-            let out = filter_receiver(&pass, r, scratch);
-            if r % 1024 == 1023 {
-                progress(1024);
-            }
-            out
-        })
-        .collect();
+    // Algorithm 1 per receiver as its chunk's batch is built (the cells it
+    // cannot serve emit their rays), then each receiver finished from its
+    // answers. The Scratch is per worker thread.
+    thread_local! {
+        static SCRATCH: std::cell::RefCell<Option<Scratch>> = const { std::cell::RefCell::new(None) };
+    }
+    let mut states = vec![(Pending::default(), ReceiverResult::default()); n];
+    for_each_receiver(
+        tracer,
+        &mut states,
+        64,
+        |r, (pending, _), batch| {
+            *pending = SCRATCH.with(|sc| {
+                let mut sc = sc.borrow_mut();
+                filter_receiver(&pass, r, sc.get_or_insert_with(Scratch::new))
+            });
+            emit_brute_force(&pass, r, pending, batch);
+        },
+        |r, (pending, result), directions, occluded| {
+            let mut cells = CellSums::new();
+            *result = finish(&pass, r, pending, directions, occluded, &mut cells);
+        },
+        progress,
+    );
+    let results: Vec<ReceiverResult> = states.into_iter().map(|(_, result)| result).collect();
     let k = samples.per_receiver;
     let mut stats = ShearedStats {
         sparse_rays: samples.t.iter().filter(|&&t| t >= 0.0).count() as u64,

@@ -2,9 +2,11 @@
 //! second pass for the cells it cannot serve.
 //!
 //! In: a [`Pass`] (the receivers in locality order, their sparse
-//! [`Samples`], the k-d tree over their positions, the tracer, options)
-//! and a receiver index. Out: a [`ReceiverResult`]: its AO and SH and the
-//! counts behind [`super::ShearedStats`].
+//! [`Samples`], the k-d tree over their positions, options) and a receiver
+//! index. Out: [`Pending`] (what Algorithm 1 filtered, the cells left to
+//! the second pass), whose rays [`emit_brute_force`] adds to a batch; then
+//! [`finish`] with their answers: a [`ReceiverResult`], its AO and SH and
+//! the counts behind [`super::ShearedStats`].
 
 use super::geometry::{
     hit_offset, lends_rays, mid_depth, miss_depths, needs_brute_force, reproject,
@@ -16,7 +18,7 @@ use crate::bake::{BakeParams, ReceiverRays};
 use crate::error::{Error, Result};
 use crate::sample::{CELL_COUNT, Frame, cell_of_fast, cosine_hemisphere, in_cell, square_cell};
 use crate::sh::{self, SH_COUNT};
-use crate::trace::Tracer;
+use crate::trace::{RayBatch, Tracer};
 use glam::{Vec2, Vec3};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use std::sync::LazyLock;
@@ -28,7 +30,6 @@ pub(super) struct Pass<'a> {
     pub samples: &'a Samples,
     /// Over the receivers' positions.
     pub tree: ImmutableKdTree<f32, 3>,
-    pub tracer: &'a Tracer,
     pub s: &'a ShearedOptions,
     pub params: &'a BakeParams,
 }
@@ -38,7 +39,6 @@ impl<'a> Pass<'a> {
     pub(super) fn new(
         receivers: &'a Receivers,
         samples: &'a Samples,
-        tracer: &'a Tracer,
         s: &'a ShearedOptions,
         params: &'a BakeParams,
     ) -> Result<Pass<'a>> {
@@ -49,7 +49,6 @@ impl<'a> Pass<'a> {
             receivers,
             samples,
             tree,
-            tracer,
             s,
             params,
         })
@@ -126,6 +125,7 @@ struct CachedHit {
 }
 
 /// What one receiver's filtering produced.
+#[derive(Clone, Copy, Default)]
 pub(super) struct ReceiverResult {
     pub(super) ao: f32,
     pub(super) sh: [f32; SH_COUNT],
@@ -174,9 +174,26 @@ impl Receiver {
     }
 }
 
-/// Algorithm 1 for receiver `r`, then the second pass for the cells it
-/// cannot serve; combines both into AO and SH.
-pub(super) fn filter_receiver(f: &Pass, r: usize, sc: &mut Scratch) -> ReceiverResult {
+/// What Algorithm 1 leaves of a receiver for the second pass: the filtered
+/// cells' share of the occlusion, the counts, and the cells it cannot serve
+/// (`marked`), whose rays [`emit_brute_force`] casts and [`finish`] adds.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Pending {
+    occ_ao: f32,
+    occ_sh: [f32; SH_COUNT],
+    filtered: u32,
+    brute: u32,
+    contact: u32,
+    no_hit: u32,
+    open: u32,
+    z_min: f32,
+    neighbours: u32,
+    marked: u64,
+}
+
+/// Algorithm 1 for receiver `r`: the cells its neighbours' samples serve,
+/// and those left to the second pass.
+pub(super) fn filter_receiver(f: &Pass, r: usize, sc: &mut Scratch) -> Pending {
     let Pass {
         receivers,
         samples,
@@ -198,17 +215,12 @@ pub(super) fn filter_receiver(f: &Pass, r: usize, sc: &mut Scratch) -> ReceiverR
     // 2.6 degrees), or part of it is occluded by the surface itself.
     let looked: u32 = sc.count.iter().map(|&c| c as u32).sum();
     if !any_occluder && looked >= CELL_COUNT as u32 && n.dot(geo) > OPEN_NORMAL_AGREEMENT {
-        return ReceiverResult {
-            ao: 1.0,
-            sh: sh::open_hemisphere(n),
-            filtered: 0,
-            brute: 0,
-            contact: 0,
-            no_hit: 0,
+        // (No occlusion: finish gives AO 1 and the open hemisphere.)
+        return Pending {
             open: CELL_COUNT as u32,
-            brute_rays: 0,
             z_min: f32::INFINITY,
             neighbours,
+            ..Pending::default()
         };
     }
 
@@ -248,13 +260,64 @@ pub(super) fn filter_receiver(f: &Pass, r: usize, sc: &mut Scratch) -> ReceiverR
         sc.occ[c] = 0.0;
         sc.occ_sh[c] = [0.0; SH_COUNT];
     }
+    Pending {
+        occ_ao,
+        occ_sh,
+        filtered,
+        brute,
+        contact,
+        no_hit,
+        open,
+        z_min: nearest,
+        neighbours,
+        marked,
+    }
+}
+
+/// The second pass's sums of one receiver's brute-forced cells.
+pub(super) struct CellSums {
+    w: [f32; CELL_COUNT],
+    occ: [f32; CELL_COUNT],
+    occ_sh: [[f32; SH_COUNT]; CELL_COUNT],
+}
+
+impl CellSums {
+    pub(super) fn new() -> CellSums {
+        CellSums {
+            w: [0.0; CELL_COUNT],
+            occ: [0.0; CELL_COUNT],
+            occ_sh: [[0.0; SH_COUNT]; CELL_COUNT],
+        }
+    }
+}
+
+/// Receiver `r`'s AO and SH: the filtered cells' share in `pending`, plus
+/// the second pass over its marked cells from the rays [`emit_brute_force`]
+/// cast (`directions`, `occluded`, in that order), into `cells` (zeroed
+/// first).
+pub(super) fn finish(
+    f: &Pass,
+    r: usize,
+    pending: &Pending,
+    directions: &[Vec3],
+    occluded: &[bool],
+    cells: &mut CellSums,
+) -> ReceiverResult {
+    let n = f.receivers.normal[r];
+    let Pending {
+        mut occ_ao,
+        mut occ_sh,
+        marked,
+        ..
+    } = *pending;
+    let inv_cells = 1.0 / CELL_COUNT as f32;
     let brute_rays = if marked != 0 {
-        let traced = brute_force_cells(f, r, marked, sc);
+        let traced = brute_force_cells(f, r, marked, directions, occluded, cells);
         for c in 0..CELL_COUNT {
-            if marked & (1 << c) != 0 && sc.occ[c] > 0.0 {
-                let inv = inv_cells / sc.w[c];
-                occ_ao += sc.occ[c] * inv;
-                for (acc, v) in occ_sh.iter_mut().zip(sc.occ_sh[c]) {
+            if marked & (1 << c) != 0 && cells.occ[c] > 0.0 {
+                let inv = inv_cells / cells.w[c];
+                occ_ao += cells.occ[c] * inv;
+                for (acc, v) in occ_sh.iter_mut().zip(cells.occ_sh[c]) {
                     *acc += v * inv;
                 }
             }
@@ -267,14 +330,14 @@ pub(super) fn filter_receiver(f: &Pass, r: usize, sc: &mut Scratch) -> ReceiverR
     ReceiverResult {
         ao: (1.0 - occ_ao).clamp(0.0, 1.0),
         sh: std::array::from_fn(|i| open_sh[i] - occ_sh[i]),
-        filtered,
-        brute,
-        contact,
-        no_hit,
-        open,
+        filtered: pending.filtered,
+        brute: pending.brute,
+        contact: pending.contact,
+        no_hit: pending.no_hit,
+        open: pending.open,
         brute_rays,
-        z_min: nearest,
-        neighbours,
+        z_min: pending.z_min,
+        neighbours: pending.neighbours,
     }
 }
 
@@ -571,9 +634,8 @@ fn filter_samples(
     }
 }
 
-/// The second pass for receiver `r`: Monte Carlo over the cells set in
-/// `marked`, whose sums in `sc` (weight, occluded weight, occluded SH) must
-/// be zero on entry. Returns the rays traced.
+/// The points of receiver `r`'s second pass in order: (point index, its
+/// cell) for the cells set in `marked`.
 ///
 /// The rays are the receiver's own sparse sequence continued: points
 /// `0..64 m` (m = `cell_rays`) of the same Owen-scrambled Sobol sequence,
@@ -585,43 +647,85 @@ fn filter_samples(
 /// across cells: on Sponza 512 with every cell marked this equals
 /// `--method mc` at 64 m rays (AO RMSE 0.0123 at 128), where m rays drawn
 /// per cell independently gave 0.0146.
-fn brute_force_cells(f: &Pass, r: usize, marked: u64, sc: &mut Scratch) -> u32 {
+fn second_pass_points<'r>(
+    rays: &'r ReceiverRays,
+    cell_rays: u32,
+    marked: u64,
+) -> impl Iterator<Item = (u32, usize, Vec2)> + 'r {
+    (0..CELL_COUNT as u32 * cell_rays.max(1)).filter_map(move |i| {
+        let u = rays.point(i);
+        let c = square_cell(u);
+        (marked & (1 << c) != 0).then_some((i, c, u))
+    })
+}
+
+/// The rays receiver `r`'s second pass traces, into `batch`: those of its
+/// marked cells past the sparse ones (a direction below the geometric
+/// plane blocked, to keep the order).
+pub(super) fn emit_brute_force(f: &Pass, r: usize, pending: &Pending, batch: &mut RayBatch) {
+    if pending.marked == 0 {
+        return;
+    }
+    let (receivers, params) = (f.receivers, f.params);
+    let rays = ReceiverRays::with_stream(receivers, r, params.seed, SPARSE_STREAM);
+    let k = f.samples.per_receiver;
+    for (i, _, u) in second_pass_points(&rays, f.s.cell_rays, pending.marked) {
+        if (i as usize) < k {
+            continue;
+        }
+        let d = rays.direction_of(u);
+        if d.dot(rays.geo_normal) > 0.0 {
+            batch.push(rays.origin, d, params.max_distance);
+        } else {
+            batch.push_blocked(d);
+        }
+    }
+}
+
+/// The second pass for receiver `r`: Monte Carlo over the cells set in
+/// `marked`, from the sparse samples and the traced rays
+/// ([`emit_brute_force`]'s, in order), into `cells` (zeroed first).
+/// Returns the rays traced (those above the geometric plane).
+fn brute_force_cells(
+    f: &Pass,
+    r: usize,
+    marked: u64,
+    directions: &[Vec3],
+    occluded: &[bool],
+    cells: &mut CellSums,
+) -> u32 {
     let Pass {
         receivers,
         samples,
-        tracer,
         s,
         params,
         ..
     } = *f;
+    cells.w = [0.0; CELL_COUNT];
+    cells.occ = [0.0; CELL_COUNT];
+    cells.occ_sh = [[0.0; SH_COUNT]; CELL_COUNT];
     // The sparse pass's sequence (stream 1).
     let rays = ReceiverRays::with_stream(receivers, r, params.seed, SPARSE_STREAM);
-    let (origin, geo) = (rays.origin, rays.geo_normal);
+    let geo = rays.geo_normal;
     let k = samples.per_receiver;
-    let m = s.cell_rays.max(1);
     let mut traced = 0u32;
-    for i in 0..CELL_COUNT as u32 * m {
-        let u = rays.point(i);
-        let c = square_cell(u);
-        if marked & (1 << c) == 0 {
-            continue;
-        }
+    let mut next = directions.iter().zip(occluded);
+    for (i, c, _) in second_pass_points(&rays, s.cell_rays, marked) {
         let (d, occluded) = if (i as usize) < k {
             let si = r * k + i as usize;
             let t = samples.t[si];
             (samples.dir[si], t < 0.0 || t <= params.max_distance)
         } else {
-            let d = rays.direction_of(u);
+            let (&d, &hit) = next
+                .next()
+                .expect("one traced ray per point past the sparse ones");
             traced += (d.dot(geo) > 0.0) as u32;
-            (
-                d,
-                !tracer.receiver_visible(origin, geo, d, params.max_distance),
-            )
+            (d, hit)
         };
-        sc.w[c] += 1.0;
+        cells.w[c] += 1.0;
         if occluded {
-            sc.occ[c] += 1.0;
-            sh::accumulate(&mut sc.occ_sh[c], 1.0, d);
+            cells.occ[c] += 1.0;
+            sh::accumulate(&mut cells.occ_sh[c], 1.0, d);
         }
     }
     traced
@@ -638,10 +742,26 @@ pub fn cell_estimates(
     params: &BakeParams,
     r: usize,
 ) -> Vec<(f32, f32, bool)> {
-    let pass = Pass::new(receivers, samples, tracer, s, params).expect("k-d tree");
+    let pass = Pass::new(receivers, samples, s, params).expect("k-d tree");
     let mut sc = Scratch::new();
-    filter_receiver(&pass, r, &mut sc);
+    let pending = filter_receiver(&pass, r, &mut sc);
+    let mut batch = RayBatch::new();
+    emit_brute_force(&pass, r, &pending, &mut batch);
+    let mut occluded = Vec::new();
+    tracer.occluded_batch(&batch, &mut occluded);
+    let mut cells = CellSums::new();
+    finish(
+        &pass,
+        r,
+        &pending,
+        batch.directions(),
+        &occluded,
+        &mut cells,
+    );
     (0..CELL_COUNT)
-        .map(|c| (sc.w[c], sc.occ[c], sc.brute[c]))
+        .map(|c| match pending.marked & (1 << c) != 0 {
+            true => (cells.w[c], cells.occ[c], sc.brute[c]),
+            false => (sc.w[c], sc.occ[c], sc.brute[c]),
+        })
         .collect()
 }
