@@ -166,13 +166,6 @@ impl Tracer {
         dir.dot(geo_normal) > 0.0 && !self.occluded(origin, dir, t_max)
     }
 
-    /// The closest hit in (0, t_max]: its distance from `origin` and the
-    /// triangle's index.
-    #[inline]
-    fn closest(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, usize)> {
-        self.closest_within(origin, dir, t_max, t_max)
-    }
-
     /// The one traversal the closest-hit queries share: the closest hit in
     /// (0, t_max], cut at `depth` ([`Hit`]). A hit found beyond `depth` is
     /// taken as a hit at `depth`, which shortens the ray there, so the rest
@@ -196,20 +189,6 @@ impl Tracer {
         })
     }
 
-    /// The closest hit in (0, t_max] as (distance, triangle index), its
-    /// distance exact below `depth` and `depth` beyond.
-    #[inline]
-    fn closest_within(
-        &self,
-        origin: Vec3,
-        dir: Vec3,
-        t_max: f32,
-        depth: f32,
-    ) -> Option<(f32, usize)> {
-        let hit = self.trace_closest(origin, dir, t_max, depth)?;
-        Some((hit.distance_within(t_max, depth), hit.triangle as usize))
-    }
-
     /// Whether `hit`, of a ray along `dir` traced without a cut (depth =
     /// t_max), is the back face of a single-sided triangle (see
     /// [`Tracer::back_face_hit`]).
@@ -225,38 +204,8 @@ impl Tracer {
     /// negated front normal, so a back face has `ng . dir < 0`.
     #[inline]
     pub fn back_face_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<bool> {
-        self.closest_hit_side(origin, dir, t_max)
-            .map(|(_, back)| back)
-    }
-
-    /// The closest hit in (0, t_max]: its distance, and whether it is the
-    /// back face of a single-sided triangle (see [`Tracer::back_face_hit`]).
-    #[inline]
-    pub fn closest_hit_side(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, bool)> {
-        let hit = self.trace_closest(origin, dir, t_max, t_max)?;
-        Some((
-            hit.distance_within(t_max, t_max),
-            self.is_back_face(hit, dir),
-        ))
-    }
-
-    /// Whether anything is hit in (0, t_max], with the closest hit's
-    /// distance when it is below `depth`, else `depth` (for `depth` in
-    /// [0, t_max]): a closest-hit query that only needs exact distances up
-    /// to `depth`, at about an any-hit query's cost when the closest hit
-    /// is far (one traversal, which a hit beyond `depth` cuts there).
-    #[inline]
-    pub fn hit_depth_within(&self, origin: Vec3, dir: Vec3, t_max: f32, depth: f32) -> Option<f32> {
-        self.closest_within(origin, dir, t_max, depth)
-            .map(|(t, _)| t)
-    }
-
-    /// Distance to the closest hit in (0, t_max] and the unit geometric
-    /// normal there (either side), if any.
-    #[inline]
-    pub fn closest_hit_normal(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
-        let hit = self.trace_closest(origin, dir, t_max, t_max)?;
-        Some((hit.distance_within(t_max, t_max), self.hit_normal(hit)))
+        self.trace_closest(origin, dir, t_max, t_max)
+            .map(|hit| self.is_back_face(hit, dir))
     }
 
     /// The unit geometric normal of `hit`'s triangle (either side).
@@ -268,7 +217,8 @@ impl Tracer {
     /// Distance to the closest hit in (0, t_max], if any.
     #[inline]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<f32> {
-        self.closest(origin, dir, t_max).map(|(t, _)| t)
+        self.trace_closest(origin, dir, t_max, t_max)
+            .map(|hit| hit.distance_within(t_max, t_max))
     }
 }
 
@@ -343,32 +293,53 @@ mod tests {
         }
     }
 
+    /// A query cut at `depth`: the closest hit's distance below it, else
+    /// `depth`.
+    fn hit_depth_within(t: &Tracer, o: Vec3, d: Vec3, t_max: f32, depth: f32) -> Option<f32> {
+        t.trace_closest(o, d, t_max, depth)
+            .map(|hit| hit.distance_within(t_max, depth))
+    }
+
     #[test]
     fn hit_depth_is_exact_below_the_asked_depth_and_the_depth_beyond() {
         // Two parallel quads at 0.1 and 0.3 above the origin.
         let mut tris = quad(0.1, 0.2);
         tris.extend(quad(0.3, 0.2));
-        let t = Tracer::new(&tris);
+        let t = &Tracer::new(&tris);
         let o = Vec3::new(0.05, -0.03, 0.0);
         let d = Vec3::new(0.1, 0.2, 1.0).normalize();
         let first = 0.1 / d.z;
         assert!((t.closest_hit(o, d, 1.0).unwrap() - first).abs() < 1e-6);
         // Below the depth: the closest hit, whatever the depth.
         for depth in [0.2f32, 0.5, 1.0, 7.0] {
-            let h = t.hit_depth_within(o, d, 1.0, depth).unwrap();
+            let h = hit_depth_within(t, o, d, 1.0, depth).unwrap();
             assert!((h - first).abs() < 1e-6, "depth {depth}: {h}");
         }
         // Beyond it: exactly the depth (a hit, its distance not asked).
-        assert_eq!(t.hit_depth_within(o, d, 1.0, 0.05), Some(0.05));
-        assert_eq!(t.hit_depth_within(o, d, 1.0, 0.0), Some(0.0));
+        assert_eq!(hit_depth_within(t, o, d, 1.0, 0.05), Some(0.05));
+        assert_eq!(hit_depth_within(t, o, d, 1.0, 0.0), Some(0.0));
         // Nothing within t_max: no hit, whatever the depth.
-        assert_eq!(t.hit_depth_within(o, d, 0.09, 0.05), None);
-        assert_eq!(t.hit_depth_within(o, -d, 1.0, 0.05), None);
+        assert_eq!(hit_depth_within(t, o, d, 0.09, 0.05), None);
+        assert_eq!(hit_depth_within(t, o, -d, 1.0, 0.05), None);
         // Only the far quad in range from above the near one.
         let above = o + Vec3::new(0.0, 0.0, 0.2);
-        let h = t.hit_depth_within(above, d, 1.0, 0.5).unwrap();
+        let h = hit_depth_within(t, above, d, 1.0, 0.5).unwrap();
         assert!((h - 0.1 / d.z).abs() < 1e-6);
-        assert_eq!(Tracer::new(&[]).hit_depth_within(o, d, 1.0, 0.5), None);
+        assert_eq!(hit_depth_within(&Tracer::new(&[]), o, d, 1.0, 0.5), None);
+        // A hit traced with a cut at one depth reads, at any shallower
+        // depth, exactly what a query cut there returns (the batches trace
+        // once at the deepest depth a pass may need).
+        for from in [o, above] {
+            let deep = t.trace_closest(from, d, 1.0, 0.5).unwrap();
+            for depth in [0.0f32, 0.05, 0.1 / d.z, 0.2, 0.3, 0.5] {
+                let read = deep.distance_within(1.0, depth);
+                assert_eq!(
+                    Some(read),
+                    hit_depth_within(t, from, d, 1.0, depth),
+                    "{depth}"
+                );
+            }
+        }
     }
 
     #[test]

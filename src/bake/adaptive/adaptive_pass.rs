@@ -47,12 +47,13 @@ pub fn adaptive_pass(
             }
         },
         |r, s, directions, occluded| {
-            let ray = ReceiverRays::new(receivers, r, p.seed);
+            let geo_normal = receivers.geo_normal[r];
             let above_only = filtered(r);
             // (`below` counts the pre-pass's rays below so far: none,
             // nothing to take out.)
             if above_only && s.below > 0 {
                 // The pre-pass summed its rays below into both sums.
+                let ray = ReceiverRays::new(receivers, r, p.seed);
                 for i in 0..pre_rays {
                     let d = ray.direction(i);
                     if d.dot(ray.geo_normal) <= 0.0 {
@@ -67,7 +68,7 @@ pub fn adaptive_pass(
                 s.below += rays[r].saturating_sub(pre_rays) - cast;
             }
             for (&d, &hit) in directions.iter().zip(occluded) {
-                if !above_only && d.dot(ray.geo_normal) <= 0.0 {
+                if !above_only && d.dot(geo_normal) <= 0.0 {
                     s.below += 1;
                 }
                 sh::accumulate(&mut s.all, 1.0, d);
