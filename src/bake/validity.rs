@@ -73,17 +73,36 @@ pub fn inside_geometry(
     if !tracer.has_single_sided() {
         return vec![false; receivers.len()];
     }
-    // Two rounds of batches: the probe, then the rest of the test where
-    // the probe saw a back face (the rays [`BackFaces::counts`]).
-    let mut counts = vec![BackFaces::default(); receivers.len()];
-    for (from, to) in [(0, VALIDITY_PROBE), (VALIDITY_PROBE, VALIDITY_RAYS)] {
+    let counts = vec![BackFaces::default(); receivers.len()];
+    finish_inside(receivers, tracer, max_distance, seed, 0, counts)
+}
+
+/// Per receiver: inside geometry, its test continued from ray `from` of
+/// the bake's sequence with `counts[r]` the count of receiver r's rays
+/// before it (the adaptive pre-pass's, when it casts fewer than
+/// [`VALIDITY_RAYS`]). Traced in two rounds of batches: the probe, then the
+/// rest of the test where the probe saw a back face (the rays
+/// [`BackFaces::counts`]).
+pub fn finish_inside(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    max_distance: f32,
+    seed: u64,
+    from: u32,
+    mut counts: Vec<BackFaces>,
+) -> Vec<bool> {
+    for (start, end) in [(0, VALIDITY_PROBE), (VALIDITY_PROBE, VALIDITY_RAYS)] {
+        let start = start.max(from);
+        if start >= end {
+            continue;
+        }
         for_each_receiver_query::<Closest, BackFaces>(
             tracer,
             &mut counts,
             256,
             |r, count, batch| {
                 let rays = ReceiverRays::new(receivers, r, seed);
-                for i in (from..to).take_while(|&i| count.counts(i)) {
+                for i in (start..end).take_while(|&i| count.counts(i)) {
                     let d = rays.direction(i);
                     if d.dot(rays.geo_normal) > 0.0 {
                         batch.push(rays.origin, d, max_distance);
@@ -99,28 +118,6 @@ pub fn inside_geometry(
         );
     }
     counts.iter().map(BackFaces::inside).collect()
-}
-
-/// Whether the receiver of `rays` is inside, its test continued from ray
-/// `from` with the count of the rays before it.
-pub fn finish_inside(
-    rays: &ReceiverRays,
-    tracer: &Tracer,
-    max_distance: f32,
-    from: u32,
-    mut count: BackFaces,
-) -> bool {
-    for i in from..VALIDITY_RAYS {
-        if !count.counts(i) {
-            break;
-        }
-        let d = rays.direction(i);
-        if d.dot(rays.geo_normal) <= 0.0 {
-            continue;
-        }
-        count.add(tracer.back_face_hit(rays.origin, d, max_distance) == Some(true));
-    }
-    count.inside()
 }
 
 #[cfg(test)]

@@ -95,7 +95,7 @@ impl Tracer {
 
     /// [`Tracer::new`] that also knows which triangles are single-sided
     /// (`single_sided[i]` for `occluders[i]`; missing entries are
-    /// double-sided), for [`Tracer::back_face_hit`].
+    /// double-sided), for [`Tracer::is_back_face`].
     pub fn with_sides(occluders: &[[Vec3A; 3]], single_sided: &[bool]) -> Tracer {
         if occluders.is_empty() {
             return Tracer {
@@ -136,7 +136,7 @@ impl Tracer {
     }
 
     /// Whether any occluder triangle is single-sided: without one, no
-    /// closest hit is ever a back face ([`Tracer::back_face_hit`]), so the
+    /// closest hit is ever a back face ([`Tracer::is_back_face`]), so the
     /// validity test has nothing to find.
     pub fn has_single_sided(&self) -> bool {
         self.single_sided.iter().any(|&s| s)
@@ -190,22 +190,13 @@ impl Tracer {
     }
 
     /// Whether `hit`, of a ray along `dir` traced without a cut (depth =
-    /// t_max), is the back face of a single-sided triangle (see
-    /// [`Tracer::back_face_hit`]).
+    /// t_max), is the back face of a single-sided triangle. Front faces are
+    /// counter-clockwise; obvhs stores `ng = (v0 - v1) x (v2 - v0)`, the
+    /// negated front normal, so a back face has `ng . dir < 0`.
     #[inline]
     pub fn is_back_face(&self, hit: Hit, dir: Vec3) -> bool {
         let id = hit.triangle as usize;
         self.single_sided[id] && Vec3::from(self.tris[id].ng).dot(dir) < 0.0
-    }
-
-    /// Whether the closest hit in (0, t_max] is the back face of a
-    /// single-sided triangle (`None`: no hit). Front faces are
-    /// counter-clockwise; obvhs stores `ng = (v0 - v1) x (v2 - v0)`, the
-    /// negated front normal, so a back face has `ng . dir < 0`.
-    #[inline]
-    pub fn back_face_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<bool> {
-        self.trace_closest(origin, dir, t_max, t_max)
-            .map(|hit| self.is_back_face(hit, dir))
     }
 
     /// The unit geometric normal of `hit`'s triangle (either side).

@@ -166,21 +166,24 @@ pub fn pre_pass(
         );
         from = end;
     }
-    let finish = |r: usize, s: &Running| -> (u16, bool) {
-        let mut occluded = [0u64; STRATA_WORDS];
-        occluded[..words].copy_from_slice(s.occluded);
-        let crossings = strata.crossings(&occluded).min(u16::MAX as u32) as u16;
-        let rays = ReceiverRays::new(receivers, r, p.seed);
-        let inside = test_faces
-            && validity::finish_inside(&rays, tracer, p.max_distance, o.pre_rays, s.faces);
-        (crossings, inside)
-    };
-    let (crossings, inside): (Vec<u16>, Vec<bool>) = running
+    let crossings: Vec<u16> = running
         .par_iter()
-        .enumerate()
         .with_min_len(CHUNK)
-        .map(|(r, s)| finish(r, s))
-        .unzip();
+        .map(|s| {
+            let mut occluded = [0u64; STRATA_WORDS];
+            occluded[..words].copy_from_slice(s.occluded);
+            strata.crossings(&occluded).min(u16::MAX as u32) as u16
+        })
+        .collect();
+    // The validity test goes on past the pre-pass's rays (where it casts
+    // fewer than the test's), from the faces its rays saw.
+    let inside = match test_faces {
+        true => {
+            let faces = running.iter().map(|s| s.faces).collect();
+            validity::finish_inside(receivers, tracer, p.max_distance, p.seed, o.pre_rays, faces)
+        }
+        false => vec![false; n],
+    };
     PrePass {
         sums: running.iter().map(|s| s.sums).collect(),
         own_z: running.iter().map(|s| s.z).collect(),
