@@ -287,3 +287,67 @@ fn scale_1e_minus_4_and_1e4_give_the_same_bake() {
         assert!(b.bake.sh.iter().flatten().all(|v| v.is_finite()));
     }
 }
+
+#[test]
+fn contact_texels_split_per_cell_match_the_wall_closed_form_with_fewer_rays() {
+    // A floor beside a tall wall at x = 0 (facing -x), max distance D: a
+    // floor receiver at distance a sees AO = 1 - (acos s - s sqrt(1 - s^2))
+    // / pi, s = a / D (cosine-weighted directions hit iff w_x >= a / D).
+    // The texels within a few footprints of the wall are in contact: their
+    // cells facing the wall are near, those facing away far (open), so
+    // the split casts fewer rays there than the whole-hemisphere count.
+    let d = 0.3f64;
+    let floor = quad([-0.1, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0], true);
+    let wall = quad([0.0, 0.0, 0.16], [0.0, 0.0, 0.16], [0.0, 0.4, 0.0], true);
+    let sc = scene(&glb(&[floor, wall], plain_nodes(2)));
+    // With the inside fill: the texels under the wall's foot neither lend
+    // nor count.
+    let mut s = settings(512, DEFAULT_RAYS, Some(d));
+    s.method = Method::Adaptive;
+    let split = aobake::bake_scene(&sc, &s).unwrap();
+    s.adaptive.contact_cells = false;
+    let whole = aobake::bake_scene(&sc, &s).unwrap();
+    let mc = bake_raw(&sc, settings(512, 256, Some(d)));
+    let space = &split.geometry.space;
+    let (rc, st) = (&split.receivers, split.adaptive_stats.as_ref().unwrap());
+    // The floor within 8 footprints of the wall, away from its ends.
+    let band: Vec<(usize, f64)> = (0..rc.len())
+        .filter_map(|i| {
+            let p = space.to_world(rc.position[i]);
+            let a = -p.x as f64;
+            let fp = (rc.footprint[i] as f64) * space.diagonal;
+            (p.z.abs() < 1e-5 && p.y.abs() < 0.05 && a > 0.0 && a < 8.0 * fp).then_some((i, a))
+        })
+        .collect();
+    let closed = |a: f64| {
+        let s = (a / d).min(1.0);
+        1.0 - (s.acos() - s * (1.0 - s * s).sqrt()) / std::f64::consts::PI
+    };
+    let err = |b: &aobake::job::Baked| {
+        let e: Vec<f64> = band.iter().map(|&(i, a)| b.bake.ao[i] as f64 - closed(a)).collect();
+        let n = e.len() as f64;
+        let bias = e.iter().sum::<f64>() / n;
+        (bias, (e.iter().map(|e| e * e).sum::<f64>() / n).sqrt())
+    };
+    let contact: Vec<usize> = band
+        .iter()
+        .map(|&(i, _)| i)
+        .filter(|&i| st.sigma_texels[i] == 0.0)
+        .collect();
+    assert!(contact.len() > 100, "{} contact texels", contact.len());
+    let mean_rays = |b: &aobake::job::Baked| {
+        let r = &b.adaptive_stats.as_ref().unwrap().rays;
+        contact.iter().map(|&i| r[i] as f64).sum::<f64>() / contact.len() as f64
+    };
+    let (split_rays, whole_rays) = (mean_rays(&split), mean_rays(&whole));
+    let ((b_split, e_split), (_, e_whole), (_, e_mc)) = (err(&split), err(&whole), err(&mc));
+    eprintln!(
+        "{} texels ({} in contact): rays in contact {split_rays:.1} split, {whole_rays:.1} whole; \
+         AO RMSE {e_split:.4} (bias {b_split:+.4}) split, {e_whole:.4} whole, {e_mc:.4} 256-ray MC",
+        band.len(),
+        contact.len()
+    );
+    assert!(split_rays < 0.8 * whole_rays, "{split_rays} vs {whole_rays}");
+    assert!(b_split.abs() < 0.004, "bias {b_split:+.4}");
+    assert!(e_split < 1.1 * e_mc, "AO RMSE {e_split:.4} vs 256-ray MC {e_mc:.4}");
+}
