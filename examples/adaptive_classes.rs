@@ -94,12 +94,6 @@ fn main() {
         if let Ok(v) = std::env::var("AOBAKE_REACH") {
             s.adaptive.max_reach = v.parse().unwrap();
         }
-        if std::env::var("AOBAKE_FILL").is_ok() {
-            s.fill_inside = true;
-        }
-        if let Ok(v) = std::env::var("AOBAKE_CELLS") {
-            s.adaptive.contact_cells = v != "0";
-        }
         if let Ok(v) = std::env::var("AOBAKE_PRE") {
             s.adaptive.pre_rays = v.parse().unwrap();
         }

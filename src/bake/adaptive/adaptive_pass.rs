@@ -1,44 +1,37 @@
 //! The adaptive pass: each receiver's sequence continued from `pre_rays`
 //! to its ray count, added to the pre-pass's sums.
 //!
-//! In: [`Receivers`], a [`Tracer`], the pre-pass's [`RaySums`] and
-//! [`FirstRays`], each receiver's ray count, whether it is filtered and
-//! whether it is split per cell (skipped here: [`super::cells`]),
-//! [`BakeParams`]. Out: the sums over all of each receiver's rays (a
-//! filtered receiver's leave out its rays below the geometric plane,
-//! which are counted only, [`super::sums::below_compensated`]), and what
-//! its first rays saw (below the plane: near).
+//! In: [`Receivers`], a [`Tracer`], the pre-pass's [`RaySums`], each
+//! receiver's ray count and whether it is filtered, [`BakeParams`]. Out:
+//! the sums over all of each receiver's rays; a filtered receiver's leave
+//! out its rays below the geometric plane, which are counted only
+//! ([`super::sums::below_compensated`]).
 
-use super::cells::{FIRST, FirstRays};
 use super::sums::{CHUNK, RaySums};
 use crate::atlas::Receivers;
 use crate::bake::{BakeParams, ReceiverRays};
 use crate::sh;
 use crate::trace::{Tracer, for_each_receiver};
 
-/// Traces the rays from `pre_rays` to `rays[r]` of every receiver r that
-/// is not `split(r)` into `traced[r]`; `filtered(r)`: its sums leave out
-/// the rays below the plane. `progress` is told the receivers done.
+/// Traces the rays from `pre_rays` to `rays[r]` of every receiver r into
+/// `sums`; `filtered(r)`: its sums leave out the rays below the plane.
+/// `progress` is told the receivers done.
 #[allow(clippy::too_many_arguments)]
 pub fn adaptive_pass(
     receivers: &Receivers,
     tracer: &Tracer,
-    traced: &mut [(RaySums, FirstRays)],
+    sums: &mut [RaySums],
     pre_rays: u32,
     rays: &[u32],
     filtered: impl Fn(usize) -> bool + Sync,
-    split: impl Fn(usize) -> bool + Sync,
     p: &BakeParams,
     progress: &(dyn Fn(u64) + Sync),
 ) {
     for_each_receiver(
         tracer,
-        traced,
+        sums,
         CHUNK,
-        |r, (_, first), batch| {
-            if split(r) {
-                return;
-            }
+        |r, _, batch| {
             let ray = ReceiverRays::new(receivers, r, p.seed);
             let above_only = filtered(r);
             for i in pre_rays..rays[r] {
@@ -46,34 +39,14 @@ pub fn adaptive_pass(
                 // Below the surface: occluded without tracing
                 // ([`Tracer::receiver_visible`]'s test; a filtered
                 // receiver only counts those).
-                let above = d.dot(ray.geo_normal) > 0.0;
-                if !above {
-                    first.set_below(i);
-                }
-                if above {
+                if d.dot(ray.geo_normal) > 0.0 {
                     batch.push(ray.origin, d, p.max_distance);
                 } else if !above_only {
                     batch.push_blocked(d);
                 }
             }
         },
-        |r, (s, first), directions, occluded| {
-            if split(r) {
-                return;
-            }
-            // What the first rays saw: each answer's ray, past those
-            // below the plane that a filtered receiver did not cast.
-            let mut i = pre_rays;
-            for &hit in occluded {
-                while above_only_skips(filtered(r), first, i) {
-                    i += 1;
-                }
-                if i >= FIRST {
-                    break;
-                }
-                first.set(i, hit, false);
-                i += 1;
-            }
+        |r, s, directions, occluded| {
             let geo_normal = receivers.geo_normal[r];
             let above_only = filtered(r);
             // (`below` counts the pre-pass's rays below so far: none,
@@ -108,11 +81,4 @@ pub fn adaptive_pass(
         },
         progress,
     );
-}
-
-/// Whether ray `i` (below [`FIRST`]) of a filtered receiver was left out of
-/// its batch: below the plane.
-#[inline]
-fn above_only_skips(above_only: bool, first: &FirstRays, i: u32) -> bool {
-    above_only && i < FIRST && first.is_below(i)
 }

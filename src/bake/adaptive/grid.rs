@@ -57,19 +57,6 @@ impl TexelGrid {
         (j != NO_RECEIVER).then_some(j as usize)
     }
 
-    /// The receiver at texel offset (`dx`, `dy`) from receiver `r`'s
-    /// texel, if any.
-    #[inline]
-    pub fn at(&self, receivers: &Receivers, r: usize, dx: isize, dy: isize) -> Option<usize> {
-        let t = receivers.texel[r] as usize;
-        let (x, y) = ((t % self.width) as isize + dx, (t / self.width) as isize + dy);
-        if x < 0 || y < 0 || x >= self.width as isize || y >= self.height as isize {
-            return None;
-        }
-        let j = self.receiver[y as usize * self.width + x as usize];
-        (j != NO_RECEIVER).then_some(j as usize)
-    }
-
     /// Receivers within `reach` texels of receiver `r`'s texel along a row
     /// (`vertical` false) or a column, each with its distance in texels.
     #[inline]

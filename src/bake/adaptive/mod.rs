@@ -36,7 +36,6 @@
 pub mod adaptive_pass;
 pub mod allocation;
 pub mod bounds;
-pub mod cells;
 pub mod filter;
 pub mod grid;
 pub mod options;
@@ -137,71 +136,35 @@ pub fn bake(
     // estimate counts its outputs only).
     let grid = TexelGrid::new(receivers);
     let b = bounds::bounds(receivers, &grid, &pre, o);
-    let mut rays: Vec<u32> = allocation::allocate_variances(&b.filtered, &b.unfiltered, o)
+    let rays: Vec<u32> = allocation::allocate_variances(&b.filtered, &b.unfiltered, o)
         .into_iter()
         .map(|t| t.max(o.pre_rays))
         .collect();
     let (z_min, sigma_texels) = (b.z_min, b.sigma_texels);
-    let inside = pre.inside;
-    let split = match o.contact_cells {
-        true => cells::splits(&sigma_texels, &inside, &rays, o),
-        false => Vec::new(),
-    };
-    let mut is_split = vec![false; n];
-    for &r in &split {
-        is_split[r as usize] = true;
-    }
+    let (mut sums, inside) = (pre.sums, pre.inside);
     timer.lap("bounds");
 
     // Filtered receivers' sums leave out the rays below the geometric
     // plane (counted only; see [`sums::below_compensated`]).
     let filtered = |r: usize| sigma_texels[r] > 0.0;
-    let mut traced: Vec<_> = pre.sums.into_iter().zip(pre.first).collect();
     adaptive_pass::adaptive_pass(
-        receivers,
-        tracer,
-        &mut traced,
-        o.pre_rays,
-        &rays,
-        filtered,
-        |r| is_split[r],
-        p,
-        progress,
+        receivers, tracer, &mut sums, o.pre_rays, &rays, filtered, p, progress,
     );
     timer.lap("adaptive pass");
-
-    // Split receivers: per cell ([`cells`]).
-    let exact = width::exact_depth(&receivers.footprint, o, p.max_distance);
-    let first: Vec<cells::FirstRays> = traced.iter().map(|t| t.1).collect();
-    let states = cells::split_pass(receivers, tracer, &split, &first, &rays, exact, o, p);
-    let loans = cells::loans(
-        receivers, &grid, &split, &states, &first, &rays, p.seed,
-    );
-    drop(first);
-    let split_values = cells::values(
-        receivers, &grid, &split, &states, &loans, &inside, &rays, exact, o, p.seed,
-    );
-    drop(loans);
-    timer.lap("contact cells");
 
     // Equal weight per receiver: weighting by ray count (inverse
     // variance) biases dark, because the allocation sends more rays to
     // occluded receivers (Cornell 512, adaptive:64: AO bias -0.0021 with
     // it).
-    let mut values: Vec<[f32; 10]> = (0..n)
+    let values: Vec<[f32; 10]> = (0..n)
         .into_par_iter()
         .with_min_len(1024)
         .map(|r| {
             let (normal, geo) = (receivers.normal[r], receivers.geo_normal[r]);
-            let sums = &traced[r].0;
-            sums::below_compensated(sums, rays[r], normal, geo, filtered(r))
+            sums::below_compensated(&sums[r], rays[r], normal, geo, filtered(r))
         })
         .collect();
-    drop(traced);
-    for ((&r, v), s) in split.iter().zip(split_values).zip(&states) {
-        values[r as usize] = v;
-        rays[r as usize] = s.cast(rays[r as usize]);
-    }
+    drop(sums);
     let support = FilterSupport {
         receivers,
         grid: &grid,

@@ -34,15 +34,6 @@ pub struct AdaptiveOptions {
     /// Widest filter reach in texels (2 sigma).
     #[arg(skip = Self::DEFAULT.max_reach)]
     pub max_reach: u32,
-    /// Expert: receivers in contact split per hemisphere cell
-    /// ([`super::cells`]); false: Monte Carlo over the whole hemisphere.
-    #[arg(skip = Self::DEFAULT.contact_cells)]
-    #[serde(default = "contact_cells_default")]
-    pub contact_cells: bool,
-}
-
-fn contact_cells_default() -> bool {
-    AdaptiveOptions::DEFAULT.contact_cells
 }
 
 impl AdaptiveOptions {
@@ -55,7 +46,6 @@ impl AdaptiveOptions {
         omega_h: 2.8,
         mu: 0.7,
         max_reach: 4,
-        contact_cells: true,
     };
 }
 

@@ -25,7 +25,6 @@
 //! world order ([`crate::atlas::order`]), where 16-ray Monte Carlo's
 //! trace takes 0.91 s.
 
-use super::cells::{self, FirstRays};
 use super::options::AdaptiveOptions;
 use super::strata::{STRATA_WORDS, Strata};
 use super::sums::{CHUNK, RaySums};
@@ -48,10 +47,6 @@ pub struct PrePass {
     pub crossings: Vec<u16>,
     /// Inside geometry (all false without `fill_inside`).
     pub inside: Vec<bool>,
-    /// What each receiver's first rays (below [`cells::FIRST`]) saw, per
-    /// ray: occluded, and nearer than its far depth
-    /// ([`cells::far_depth`]; below the plane counts as near).
-    pub first: Vec<FirstRays>,
 }
 
 /// A receiver's running state through the pre-pass's rounds.
@@ -59,7 +54,6 @@ pub struct PrePass {
 /// the pre-pass has).
 struct Running<'a> {
     sums: RaySums,
-    first: FirstRays,
     z: f32,
     faces: BackFaces,
     occluded: &'a mut [u64],
@@ -90,7 +84,6 @@ pub fn pre_pass(
     let strata = Strata::of(o.pre_rays);
     let exact = exact_depth(&receivers.footprint, o, p.max_distance);
     let contact = contact_depth(&receivers.footprint, o);
-    let far = |r: usize| cells::far_depth(receivers.footprint[r], o, exact);
     // Without single-sided triangles no receiver is inside: no face to test.
     let test_faces = fill_inside && tracer.has_single_sided();
     let words = (o.pre_rays as usize).div_ceil(64).clamp(1, STRATA_WORDS);
@@ -99,7 +92,6 @@ pub fn pre_pass(
         .chunks_mut(words)
         .map(|occluded| Running {
             sums: RaySums::default(),
-            first: FirstRays::default(),
             z: f32::INFINITY,
             faces: BackFaces::default(),
             occluded,
@@ -118,9 +110,8 @@ pub fn pre_pass(
                     batch.push(rays.origin, d, p.max_distance);
                 } else if s.z < contact {
                     // In contact already: a nearer hit bounds nothing
-                    // more; only whether it lies nearer than the far
-                    // depth, for the receiver's cells.
-                    batch.push_within(rays.origin, d, p.max_distance, far(r));
+                    // more, so any hit will do (cut at once).
+                    batch.push_within(rays.origin, d, p.max_distance, 0.0);
                 } else {
                     // z_min needs distances below `exact` only.
                     batch.push_within(rays.origin, d, p.max_distance, exact);
@@ -130,13 +121,11 @@ pub fn pre_pass(
         let consume = |r: usize, s: &mut Running, dirs: &[Vec3], hits: &[Option<Hit>]| {
             let geo = receivers.geo_normal[r];
             let rays = ReceiverRays::new(receivers, r, p.seed);
-            let far = far(r);
             for (i, (&d, &hit)) in (from..end).zip(dirs.iter().zip(hits)) {
                 let stratum = strata.index(rays.point(i));
                 sh::accumulate(&mut s.sums.all, 1.0, d);
                 if d.dot(geo) <= 0.0 {
                     // Below the surface: occluded, by nothing at a depth.
-                    s.first.set_below(i);
                     s.sums.below += 1;
                     sh::accumulate(&mut s.sums.sh, 1.0, d);
                     s.occluded[stratum / 64] |= 1 << (stratum % 64);
@@ -158,8 +147,6 @@ pub fn pre_pass(
                 };
                 match hit {
                     Some(h) => {
-                        // Every query is cut at the far depth or deeper.
-                        s.first.set(i, true, h.distance_within(t_max, far) < far);
                         let t = depth.map_or(s.z, |depth| h.distance_within(t_max, depth));
                         s.z = s.z.min(t);
                         sh::accumulate(&mut s.sums.sh, 1.0, d);
@@ -202,6 +189,5 @@ pub fn pre_pass(
         own_z: running.iter().map(|s| s.z).collect(),
         crossings,
         inside,
-        first: running.iter().map(|s| s.first).collect(),
     }
 }
