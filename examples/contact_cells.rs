@@ -92,6 +92,8 @@ fn main() {
     for (k, &m) in ks.iter().enumerate() {
         let cells: f64 = per.iter().map(|p| p.0[k] as f64).sum::<f64>() / per.len() as f64;
         let sh: f64 = per.iter().map(|p| p.1[k]).sum::<f64>() / tot;
-        println!("near < {m} fp: mean near cells {cells:.2} of 16, variance share in near cells {sh:.3}");
+        println!(
+            "near < {m} fp: mean near cells {cells:.2} of 16, variance share in near cells {sh:.3}"
+        );
     }
 }
