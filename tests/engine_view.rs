@@ -131,3 +131,105 @@ fn the_visibility_layer_relights_where_the_engine_reads_it() {
     let done = plain.pages(&level, &[0], &mut |_, _, _| {}).unwrap();
     assert_eq!(done[0].engine_view.unwrap().all.relight_error, None);
 }
+
+/// The independent checker's Python (its virtual environment, made by
+/// `../shared/tools/eval/setup.sh`; `AOBAKE_EVAL_PYTHON` overrides) and its
+/// `surfeval.py`, or None with a note where they are missing (under CI:
+/// a failure).
+fn checker() -> Option<(std::path::PathBuf, std::path::PathBuf)> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let script = root.join("../shared/tools/eval/surfeval.py");
+    let python = std::env::var_os("AOBAKE_EVAL_PYTHON")
+        .map(std::path::PathBuf::from)
+        .or_else(|| {
+            std::env::var_os("HOME")
+                .map(|h| std::path::Path::new(&h).join(".cache/aobake-eval-venv/bin/python"))
+        });
+    match python {
+        Some(p) if p.is_file() && script.is_file() => Some((p, script)),
+        _ => {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "the checker is missing: run ../shared/tools/eval/setup.sh"
+            );
+            eprintln!("note: skipped, the checker is missing (../shared/tools/eval/setup.sh)");
+            None
+        }
+    }
+}
+
+/// The checker's AO RMSE over all points of `glb`, its rays' origins
+/// offset by `eps` of the scene's diagonal.
+fn checker_rmse(
+    checker: &(std::path::PathBuf, std::path::PathBuf),
+    glb: &std::path::Path,
+    eps: f64,
+) -> f64 {
+    let out = std::process::Command::new(&checker.0)
+        .arg(&checker.1)
+        .arg(glb)
+        .args([
+            "--points",
+            "6000",
+            "--rays",
+            "2048",
+            "--threads",
+            "2",
+            "--json",
+        ])
+        .args(["--eps", &eps.to_string()])
+        .output()
+        .expect("the checker runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    v["all"]["ao_rmse"].as_f64().unwrap()
+}
+
+#[test]
+fn the_engine_view_and_the_checker_agree_on_a_thin_gap() {
+    // Two 2 x 2 planes facing each other across a gap h of 1e-3 of the
+    // scene's diagonal, D = 2h: AO = (h / D)^2 = 1/4 on both faces. An
+    // offset of e of the diagonal moves it to ((h - e) / D)^2, so the two
+    // measurements agree only where both offset their rays far less than
+    // the gap: the contract's vanishing offset. The checker's default (1e-4
+    // of the diagonal, a tenth of this gap) reads 0.2025.
+    let diagonal = 8.0f64.sqrt();
+    let h = (1e-3 * diagonal) as f32;
+    let recv = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
+    let occ = quad([0.0, 0.0, h], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], true);
+    let sc = scene(&glb(&[recv, occ], plain_nodes(2)));
+    let s = settings(128, 256, Some(2.0 * h as f64));
+    let run = RunOptions {
+        engine_view_points: 6000,
+        engine_view_rays: 2048,
+        ..RunOptions::QUIET
+    };
+    let mut job = Job::new(&sc, &s, &run, StageTimer::new());
+    let level = job.level().unwrap();
+    let done = job.pages(&level, &[0], &mut |_, _, _| {}).unwrap();
+    let ours = done[0].engine_view.expect("measured").all.ao_rmse;
+    let encoded: Vec<_> = done.iter().map(|d| &d.encoded).collect();
+    let (bytes, _) = job.write(&level, &encoded, None).unwrap();
+    let Some(checker) = checker() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("gap.glb");
+    std::fs::write(&path, bytes).unwrap();
+    let theirs = checker_rmse(&checker, &path, 1e-5);
+    let default = checker_rmse(&checker, &path, 1e-4);
+    eprintln!(
+        "AO RMSE: engine view {ours:.4}, checker {theirs:.4} (its default offset {default:.4})"
+    );
+    // The bake is right (a flat 1/4 away from the planes' edges): both
+    // figures are the references' noise and the edges', and they agree.
+    assert!(ours < 0.02 && theirs < 0.02, "{ours} {theirs}");
+    assert!(
+        (ours - theirs).abs() < 0.003,
+        "engine view {ours:.4}, checker {theirs:.4}"
+    );
+}
