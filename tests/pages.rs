@@ -548,3 +548,71 @@ fn a_merge_solves_the_seams_across_pages_as_one_process_does() {
         "the merged file differs from the one-process bake"
     );
 }
+
+/// `n` separate 1 x 1 quads on a row, one mesh (one chart) each.
+fn many_charts(n: usize) -> aobake::gltf::Scene {
+    let quads: Vec<common::MeshSpec> = (0..n)
+        .map(|k| {
+            common::quad(
+                [2.0 * k as f32, 0.0, 0.0],
+                [0.5, 0.0, 0.0],
+                [0.0, 0.5, 0.0],
+                true,
+            )
+        })
+        .collect();
+    common::scene(&common::glb(&quads, common::plain_nodes(n)))
+}
+
+#[test]
+fn a_resolution_too_small_for_the_charts_relaxes_padding_with_a_warning() {
+    // 300 charts: with padding 2 and charts at least 2 texels wide each
+    // takes 6 x 6 texels at the least (10,800 in all), with padding 1 and
+    // width 1, 3 x 3 (2,700), without padding 1. A 64 x 64 page (4,096)
+    // holds them with padding 1, a 32 x 32 one (1,024) only without
+    // padding, a 16 x 16 one (256) not at all.
+    let sc = many_charts(300);
+    let bake = |r: u32| {
+        let mut s = common::settings(r, 16, Some(1.0));
+        s.padding = 2;
+        s.min_chart_width = 2.0;
+        aobake::bake_scene(&sc, &s)
+    };
+    for (r, padding) in [(64, 1), (32, 0)] {
+        let b = bake(r).unwrap_or_else(|e| panic!("{r}: {e}"));
+        assert_eq!(b.atlas.pages.len(), 1, "{r}");
+        assert!(b.atlas.width <= r && b.atlas.height <= r);
+        assert_eq!(b.atlas.relaxed.map(|x| x.padding), Some(padding), "{r}");
+        let said = format!("packed with padding {padding} and minimum chart width 1");
+        assert!(
+            b.report.warnings.iter().any(|w| w.contains(&said)),
+            "{r}: {:?}",
+            b.report.warnings
+        );
+        // Every chart got texels: every quad's receivers are there.
+        let meshes: std::collections::BTreeSet<u32> = b
+            .atlas
+            .meshes
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| !m.triangles.is_empty())
+            .map(|(k, _)| k as u32)
+            .collect();
+        assert_eq!(meshes.len(), 300);
+        assert!(
+            b.receivers.len() >= 300,
+            "{r}: {} receivers",
+            b.receivers.len()
+        );
+    }
+    // Roomy enough: nothing relaxed, no warning.
+    let b = bake(512).unwrap();
+    assert_eq!(b.atlas.relaxed, None);
+    assert!(!b.report.warnings.iter().any(|w| w.contains("do not fit")));
+    // Too small even without padding: one clear error.
+    let e = bake(16).err().expect("refused").to_string();
+    assert!(
+        e.contains("even without padding") && !e.contains('\n'),
+        "{e}"
+    );
+}

@@ -142,6 +142,41 @@ pub struct Atlas {
     pub texels_per_unit: f64,
     pub pages: Vec<PageSize>,
     pub meshes: Vec<ChartedMesh>,
+    /// Where the charts fit one page only with less padding or a smaller
+    /// minimum chart width than asked ([`relaxed_options`]): what they got.
+    pub relaxed: Option<Relaxed>,
+}
+
+/// The padding and minimum chart width an atlas was packed with where
+/// those asked for would not fit one page.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Relaxed {
+    pub padding: u32,
+    pub min_chart_width: f32,
+}
+
+/// The options tried, in order, when the charts of a `--resolution` atlas
+/// need more than one page with the `padding` and `min_chart_width` asked
+/// for: one texel of padding (charts two apart, so a bilinear lookup at a
+/// chart's edge still reads its own gutter) and charts at least one texel
+/// wide; then no padding (neighbouring charts' texels touch: lookups at
+/// chart edges blend them, which the warning says). Only options smaller
+/// than those asked are tried.
+pub fn relaxed_options(padding: u32, min_chart_width: f32) -> Vec<Relaxed> {
+    let width = min_chart_width.min(1.0);
+    [(padding.min(1), width), (0, width)]
+        .into_iter()
+        .filter(|&(p, w)| p < padding || w < min_chart_width)
+        .map(|(padding, min_chart_width)| Relaxed {
+            padding,
+            min_chart_width,
+        })
+        .fold(Vec::new(), |mut v, r| {
+            if v.last() != Some(&r) {
+                v.push(r);
+            }
+            v
+        })
 }
 
 impl Atlas {
@@ -157,6 +192,7 @@ impl Atlas {
             texels_per_unit: self.texels_per_unit,
             pages: vec![size],
             meshes: self.meshes.iter().map(|m| m.on_page(page)).collect(),
+            relaxed: self.relaxed,
         }
     }
 
@@ -308,11 +344,29 @@ pub fn unwrap_with_progress(
         }
         (Err(e), _) => return Err(Error::Unwrap(e.to_string())),
     };
-    if matches!(options.size, AtlasSize::Resolution(_)) && atlas.page_count > 1 {
-        return Err(Error::Limit(format!(
-            "the {} charts cannot share one atlas page with padding {} (they need {} pages); raise the resolution or lower the padding",
-            atlas.chart_count, options.padding, atlas.page_count
-        )));
+    // A `--resolution` atlas is one page: where the charts need more, less
+    // padding and narrower charts before a refusal.
+    let mut atlas = atlas;
+    let mut relaxed = None;
+    if matches!(options.size, AtlasSize::Resolution(_)) {
+        for r in relaxed_options(options.padding, options.min_chart_width) {
+            if atlas.page_count <= 1 {
+                break;
+            }
+            let o = uvunwrap::Options {
+                padding: r.padding,
+                min_chart_width: r.min_chart_width,
+                ..opts
+            };
+            atlas = generate(&o).map_err(|e| Error::Unwrap(e.to_string()))?;
+            relaxed = Some(r);
+        }
+        if atlas.page_count > 1 {
+            return Err(Error::Limit(format!(
+                "the {} charts cannot share one atlas page even without padding (they need {} pages); raise the resolution",
+                atlas.chart_count, atlas.page_count
+            )));
+        }
     }
     if atlas.width > MAX_ATLAS_EDGE || atlas.height > MAX_ATLAS_EDGE {
         return Err(Error::Limit(format!(
@@ -357,6 +411,7 @@ pub fn unwrap_with_progress(
         texels_per_unit: atlas.texels_per_unit as f64,
         pages,
         meshes,
+        relaxed,
     }))
 }
 
@@ -485,5 +540,26 @@ pub fn existing(meshes: &[ReceiverMesh], uvs: Vec<Vec<[f32; 2]>>, resolution: u3
             height: resolution,
         }],
         meshes: out,
+        relaxed: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relaxed_options_shrink_only_what_was_asked_for() {
+        let r = |padding, min_chart_width| Relaxed {
+            padding,
+            min_chart_width,
+        };
+        assert_eq!(relaxed_options(2, 2.0), vec![r(1, 1.0), r(0, 1.0)]);
+        assert_eq!(relaxed_options(3, 0.5), vec![r(1, 0.5), r(0, 0.5)]);
+        assert_eq!(relaxed_options(1, 1.0), vec![r(0, 1.0)]);
+        assert_eq!(relaxed_options(1, 2.0), vec![r(1, 1.0), r(0, 1.0)]);
+        assert_eq!(relaxed_options(0, 3.0), vec![r(0, 1.0)]);
+        assert_eq!(relaxed_options(0, 1.0), vec![]);
+        assert_eq!(relaxed_options(0, 0.0), vec![]);
     }
 }

@@ -8,6 +8,7 @@
 //! GLB bytes ([`write`](fn@write)).
 
 use super::level::{Level, Page, page_seed};
+use crate::atlas::AtlasSize;
 use crate::bake::adaptive::{self, AdaptiveStats};
 use crate::bake::sheared::{self, ShearedStats};
 use crate::bake::{Bake, BakeParams, mc, visibility};
@@ -323,6 +324,21 @@ pub fn write(
         output_dir: output_dir.map(Path::to_path_buf),
     };
     let mut warnings = scene.warnings.clone();
+    if let (Some(relaxed), AtlasSize::Resolution(r)) = (level.atlas.relaxed, s.size) {
+        warnings.push(format!(
+            "the {} charts do not fit one {r}x{r} page with padding {} and minimum chart width {}: packed with padding {} and minimum chart width {}{} (raise --resolution for the requested ones)",
+            level.atlas.charts,
+            s.padding,
+            s.min_chart_width,
+            relaxed.padding,
+            relaxed.min_chart_width,
+            if relaxed.padding == 0 {
+                ", so lookups at chart edges blend neighbouring charts"
+            } else {
+                ""
+            },
+        ));
+    }
     let glb = write::build_glb(
         scene,
         &level.geometry,
