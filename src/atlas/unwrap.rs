@@ -164,19 +164,17 @@ pub struct Relaxed {
 /// than those asked are tried.
 pub fn relaxed_options(padding: u32, min_chart_width: f32) -> Vec<Relaxed> {
     let width = min_chart_width.min(1.0);
-    [(padding.min(1), width), (0, width)]
+    let mut options = [(padding.min(1), width), (0, width)]
         .into_iter()
         .filter(|&(p, w)| p < padding || w < min_chart_width)
         .map(|(padding, min_chart_width)| Relaxed {
             padding,
             min_chart_width,
         })
-        .fold(Vec::new(), |mut v, r| {
-            if v.last() != Some(&r) {
-                v.push(r);
-            }
-            v
-        })
+        .collect::<Vec<_>>();
+    // (Asked without padding, both are the same.)
+    options.dedup();
+    options
 }
 
 impl Atlas {
@@ -320,7 +318,7 @@ pub fn unwrap_with_progress(
             true
         })
     };
-    let atlas = match (generate(&opts), options.size) {
+    let mut atlas = match (generate(&opts), options.size) {
         (Ok(a), _) => a,
         (
             Err(uvunwrap::Error::ChartTooLarge { .. }),
@@ -346,7 +344,6 @@ pub fn unwrap_with_progress(
     };
     // A `--resolution` atlas is one page: where the charts need more, less
     // padding and narrower charts before a refusal.
-    let mut atlas = atlas;
     let mut relaxed = None;
     if matches!(options.size, AtlasSize::Resolution(_)) {
         for r in relaxed_options(options.padding, options.min_chart_width) {

@@ -6,7 +6,7 @@
 //! [`BakeParams`]. Out: [`Samples`], then a [`Bake`] and [`ShearedStats`].
 
 use super::receiver::{
-    CellSums, Pass, Pending, ReceiverResult, Scratch, emit_brute_force, filter_receiver, finish,
+    Pass, Pending, ReceiverResult, Scratch, emit_brute_force, filter_receiver, finish,
 };
 use super::types::{SPARSE_STREAM, Samples, ShearedOptions, ShearedStats};
 use crate::atlas::Receivers;
@@ -120,8 +120,7 @@ pub fn filter_pass(
             emit_brute_force(&pass, r, pending, batch);
         },
         |r, (pending, result), directions, occluded| {
-            let mut cells = CellSums::new();
-            *result = finish(&pass, r, pending, directions, occluded, &mut cells);
+            *result = finish(&pass, r, pending, directions, occluded);
         },
         progress,
     );

@@ -88,9 +88,8 @@ pub(super) struct Scratch {
     /// Depth at which misses of each cell are re-aimed ([`miss_depths`]).
     aim: [f32; CELL_COUNT],
     brute: [bool; CELL_COUNT],
-    w: [f32; CELL_COUNT],
-    occ: [f32; CELL_COUNT],
-    occ_sh: [[f32; SH_COUNT]; CELL_COUNT],
+    /// The filter's sums per cell.
+    sums: CellSums,
 }
 
 impl Scratch {
@@ -107,9 +106,7 @@ impl Scratch {
             mid: [0.0; CELL_COUNT],
             aim: [0.0; CELL_COUNT],
             brute: [false; CELL_COUNT],
-            w: [0.0; CELL_COUNT],
-            occ: [0.0; CELL_COUNT],
-            occ_sh: [[0.0; SH_COUNT]; CELL_COUNT],
+            sums: CellSums::new(),
         }
     }
 }
@@ -235,30 +232,27 @@ pub(super) fn filter_receiver(f: &Pass, r: usize, sc: &mut Scratch) -> Pending {
     let mut marked = 0u64;
     let inv_cells = 1.0 / CELL_COUNT as f32;
     for c in 0..CELL_COUNT {
-        if !sc.brute[c] && sc.w[c] >= s.min_weight {
-            if sc.occ[c] == 0.0 {
+        if !sc.brute[c] && sc.sums.w[c] >= s.min_weight {
+            if sc.sums.occ[c] == 0.0 {
                 open += 1;
                 continue;
             }
             filtered += 1;
-            let inv = inv_cells / sc.w[c];
-            occ_ao += sc.occ[c] * inv;
-            for (acc, v) in occ_sh.iter_mut().zip(sc.occ_sh[c]) {
+            let inv = inv_cells / sc.sums.w[c];
+            occ_ao += sc.sums.occ[c] * inv;
+            for (acc, v) in occ_sh.iter_mut().zip(sc.sums.occ_sh[c]) {
                 *acc += v * inv;
             }
             continue;
         }
+        // The second pass replaces whatever weight the filter gave it
+        // (adding the filter's few samples to it measured worse on Sponza:
+        // AO RMSE 0.0128 -> 0.0132 at 8:4): its sums start from zero.
         brute += 1;
         marked |= 1 << c;
         contact += (sc.z_min[c].is_finite()
             && needs_brute_force(sc.z_min[c], s.omega_v_max, footprint)) as u32;
         no_hit += sc.z_min[c].is_infinite() as u32;
-        // The second pass replaces whatever weight the filter gave it
-        // (adding the filter's few samples to it measured worse on Sponza:
-        // AO RMSE 0.0128 -> 0.0132 at 8:4).
-        sc.w[c] = 0.0;
-        sc.occ[c] = 0.0;
-        sc.occ_sh[c] = [0.0; SH_COUNT];
     }
     Pending {
         occ_ao,
@@ -274,34 +268,44 @@ pub(super) fn filter_receiver(f: &Pass, r: usize, sc: &mut Scratch) -> Pending {
     }
 }
 
-/// The second pass's sums of one receiver's brute-forced cells.
-pub(super) struct CellSums {
+/// Per cell of a receiver's hemisphere: the weight of the samples or rays
+/// summed, their occluded weight and its SH (the filter's, and the second
+/// pass's over the brute-forced cells).
+struct CellSums {
     w: [f32; CELL_COUNT],
     occ: [f32; CELL_COUNT],
     occ_sh: [[f32; SH_COUNT]; CELL_COUNT],
 }
 
 impl CellSums {
-    pub(super) fn new() -> CellSums {
+    fn new() -> CellSums {
         CellSums {
             w: [0.0; CELL_COUNT],
             occ: [0.0; CELL_COUNT],
             occ_sh: [[0.0; SH_COUNT]; CELL_COUNT],
         }
     }
+
+    /// Adds weight `w` in cell `c`, occluded along `d` if `occluded`.
+    #[inline]
+    fn add(&mut self, c: usize, w: f32, occluded: bool, d: Vec3) {
+        self.w[c] += w;
+        if occluded {
+            self.occ[c] += w;
+            sh::accumulate(&mut self.occ_sh[c], w, d);
+        }
+    }
 }
 
 /// Receiver `r`'s AO and SH: the filtered cells' share in `pending`, plus
 /// the second pass over its marked cells from the rays [`emit_brute_force`]
-/// cast (`directions`, `occluded`, in that order), into `cells` (zeroed
-/// first).
+/// cast (`directions`, `occluded`, in that order).
 pub(super) fn finish(
     f: &Pass,
     r: usize,
     pending: &Pending,
     directions: &[Vec3],
     occluded: &[bool],
-    cells: &mut CellSums,
 ) -> ReceiverResult {
     let n = f.receivers.normal[r];
     let Pending {
@@ -312,7 +316,7 @@ pub(super) fn finish(
     } = *pending;
     let inv_cells = 1.0 / CELL_COUNT as f32;
     let brute_rays = if marked != 0 {
-        let traced = brute_force_cells(f, r, marked, directions, occluded, cells);
+        let (traced, cells) = brute_force_cells(f, r, marked, directions, occluded);
         for c in 0..CELL_COUNT {
             if marked & (1 << c) != 0 && cells.occ[c] > 0.0 {
                 let inv = inv_cells / cells.w[c];
@@ -524,9 +528,7 @@ fn filter_samples(
     } = *rc;
     let k = samples.per_receiver;
     let d_max = params.max_distance;
-    sc.w = [0.0; CELL_COUNT];
-    sc.occ = [0.0; CELL_COUNT];
-    sc.occ_sh = [[0.0; SH_COUNT]; CELL_COUNT];
+    sc.sums = CellSums::new();
     for (ni, &j) in sc.neighbours.iter().enumerate() {
         let j = j as usize;
         let pj = receivers.position[j];
@@ -563,11 +565,8 @@ fn filter_samples(
             );
             // Occluded: a hit within the max distance of this receiver, or
             // a direction into the receiver's own surface.
-            sc.w[c] += w;
-            if h.dist <= d_max || h.e.dot(geo) <= 0.0 {
-                sc.occ[c] += w;
-                sh::accumulate(&mut sc.occ_sh[c], w, h.e);
-            }
+            sc.sums
+                .add(c, w, h.dist <= d_max || h.e.dot(geo) <= 0.0, h.e);
         }
         // Misses: re-aimed through the mid-depth plane of their cell.
         let same_frame = nj == n;
@@ -591,12 +590,8 @@ fn filter_samples(
                 let w = weight_sq(rel2 - along * along, sc.radius[c0]);
                 // Same direction: only the two frames' cosines differ.
                 let w = w * reprojection_jacobian(d.dot(n), d.dot(nj), 1.0, 1.0, 1.0, 1.0);
-                sc.w[c0] += w;
-                if w > 0.0 && d.dot(geo) <= 0.0 {
-                    // Into the receiver's own surface: occluded.
-                    sc.occ[c0] += w;
-                    sh::accumulate(&mut sc.occ_sh[c0], w, d);
-                }
+                // Into the receiver's own surface: occluded.
+                sc.sums.add(c0, w, w > 0.0 && d.dot(geo) <= 0.0, d);
                 continue;
             }
             let centre = frame.to_world(CELL_CENTRES[c0]);
@@ -625,11 +620,7 @@ fn filter_samples(
             }
             // The target lies on the mid-depth plane, normal `centre`.
             let w = w * reprojection_jacobian(e.dot(n), d.dot(nj), e.dot(centre), dc, dist, along);
-            sc.w[c] += w;
-            if e.dot(geo) <= 0.0 {
-                sc.occ[c] += w;
-                sh::accumulate(&mut sc.occ_sh[c], w, e);
-            }
+            sc.sums.add(c, w, e.dot(geo) <= 0.0, e);
         }
     }
 }
@@ -684,16 +675,15 @@ pub(super) fn emit_brute_force(f: &Pass, r: usize, pending: &Pending, batch: &mu
 
 /// The second pass for receiver `r`: Monte Carlo over the cells set in
 /// `marked`, from the sparse samples and the traced rays
-/// ([`emit_brute_force`]'s, in order), into `cells` (zeroed first).
-/// Returns the rays traced (those above the geometric plane).
+/// ([`emit_brute_force`]'s, in order). Returns the rays traced (those
+/// above the geometric plane) and the cells' sums.
 fn brute_force_cells(
     f: &Pass,
     r: usize,
     marked: u64,
     directions: &[Vec3],
     occluded: &[bool],
-    cells: &mut CellSums,
-) -> u32 {
+) -> (u32, CellSums) {
     let Pass {
         receivers,
         samples,
@@ -701,9 +691,7 @@ fn brute_force_cells(
         params,
         ..
     } = *f;
-    cells.w = [0.0; CELL_COUNT];
-    cells.occ = [0.0; CELL_COUNT];
-    cells.occ_sh = [[0.0; SH_COUNT]; CELL_COUNT];
+    let mut cells = CellSums::new();
     // The sparse pass's sequence (stream 1).
     let rays = ReceiverRays::with_stream(receivers, r, params.seed, SPARSE_STREAM);
     let geo = rays.geo_normal;
@@ -722,13 +710,9 @@ fn brute_force_cells(
             traced += (d.dot(geo) > 0.0) as u32;
             (d, hit)
         };
-        cells.w[c] += 1.0;
-        if occluded {
-            cells.occ[c] += 1.0;
-            sh::accumulate(&mut cells.occ_sh[c], 1.0, d);
-        }
+        cells.add(c, 1.0, occluded, d);
     }
-    traced
+    (traced, cells)
 }
 
 /// Debugging aid: per cell of receiver `r`, the filter weight, occluded
@@ -749,19 +733,11 @@ pub fn cell_estimates(
     emit_brute_force(&pass, r, &pending, &mut batch);
     let mut occluded = Vec::new();
     tracer.occluded_batch(&batch, &mut occluded);
-    let mut cells = CellSums::new();
-    finish(
-        &pass,
-        r,
-        &pending,
-        batch.directions(),
-        &occluded,
-        &mut cells,
-    );
+    let (_, cells) = brute_force_cells(&pass, r, pending.marked, batch.directions(), &occluded);
     (0..CELL_COUNT)
         .map(|c| match pending.marked & (1 << c) != 0 {
             true => (cells.w[c], cells.occ[c], sc.brute[c]),
-            false => (sc.w[c], sc.occ[c], sc.brute[c]),
+            false => (sc.sums.w[c], sc.sums.occ[c], sc.brute[c]),
         })
         .collect()
 }
