@@ -236,12 +236,10 @@ fn contact_shadows_of_a_box_on_the_floor_and_a_1_cm_crevice_keep_their_depth() {
 
 #[test]
 fn curtains_keep_their_contact_against_monte_carlo() {
-    // The thin cloth curtains (shared assets; skipped without them): mean
+    // The thin cloth curtains (bundled in assets/): mean
     // AO bias of the contact texels (not filtered) and of all, against
     // 128-ray Monte Carlo (its noise averages out of a mean bias).
-    let Some(sc) = shared_scene("thin_cloth_curtains_intel_sponza.glb") else {
-        return;
-    };
+    let sc = bundled_scene("thin_cloth_curtains_intel_sponza.glb");
     // 12072 charts: one page at 512 texels needs no padding.
     let reference = bake_raw(
         &sc,

@@ -127,9 +127,7 @@ fn no_leak_across_a_thin_wall() {
 
 #[test]
 fn curtains_match_brute_force() {
-    let Some(sc) = shared_scene("thin_cloth_curtains_intel_sponza.glb") else {
-        return;
-    };
+    let sc = bundled_scene("thin_cloth_curtains_intel_sponza.glb");
     let mc = aobake::bake_scene(&sc, &settings(1024, 64, None)).unwrap();
     let f = aobake::bake_scene(&sc, &filtered(1024, None)).unwrap();
     let e = aobake::report::metrics::error_stats(&f.bake.ao, &mc.bake.ao);

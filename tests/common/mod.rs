@@ -252,6 +252,15 @@ pub fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::BakeSettings) -> aobake
     aobake::bake_scene(sc, &s).unwrap()
 }
 
+/// The scene `name` bundled in the repository's `assets/` (every clone has
+/// it: the test never skips).
+pub fn bundled_scene(name: &str) -> aobake::gltf::Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets")
+        .join(name);
+    aobake::gltf::load(&path).unwrap()
+}
+
 /// The scene `name` of the shared test assets (`../shared/assets`), or
 /// None (with a note) where they are not checked out: the test skips.
 pub fn shared_scene(name: &str) -> Option<aobake::gltf::Scene> {
