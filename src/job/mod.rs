@@ -138,7 +138,7 @@ impl<'a> Job<'a> {
         if !level.cross_seams.is_empty() {
             self.timer.restart();
             let scale = match self.settings.border {
-                BorderMode::Fit => border::SEAM_SCALE,
+                BorderMode::Fit | BorderMode::Band => border::SEAM_SCALE,
                 BorderMode::Off => 1.0,
             };
             let receivers = &level.geometry.receivers;

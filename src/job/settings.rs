@@ -168,10 +168,11 @@ pub struct BakeSettings {
     /// degrees): stitched by least squares, or left as baked
     #[arg(long, value_enum, default_value_t = Self::DEFAULT.seams)]
     pub seams: SeamMode,
-    /// The border band (texels next to a chart's edge, and its gutter):
-    /// fitted by least squares so that bilinear lookups at the chart's
-    /// surface points near its edge match values traced there, or left
-    /// holding their edge receivers' values
+    /// Texels fitted by least squares so that bilinear lookups at the
+    /// chart's surface points match values traced there: fit, the border
+    /// band (texels next to a chart's edge, and its gutter) and the cells
+    /// inside charts the signal steps across; band, the border band alone;
+    /// off, none (border texels hold their edge receivers' values)
     #[arg(long, value_enum, default_value_t = Self::DEFAULT.border)]
     #[serde(default)]
     pub border: BorderMode,

@@ -1,13 +1,15 @@
-//! Border fit: the texels of a chart's border band take the values whose
-//! bilinear lookups match the signal at the chart's own surface points.
+//! Border fit: the texels of a chart's border band, and of the cells the
+//! signal steps across inside it, take the values whose bilinear lookups
+//! match the signal at the chart's own surface points.
 //!
 //! In: a page's triangles ([`surface_triangles`]), which texels are free
-//! to move (the stitch's rule: every texel but the [`interior`] ones),
-//! the tracer. Out: [`Anchor`]s, one-sided constraints "the lookup at this
-//! UV reads this value", at surface points of every bilinear cell that has
-//! a free tap, with the contract's AO, SH (and visibility layer) traced at
-//! each point; the seams' solve ([`super::seams::solve::stitch`]) fits
-//! them together with the seams.
+//! to move (every texel but the stitch's [`interior`] ones, and with
+//! `--border fit` the taps of the [`step_texels`]' cells), the tracer.
+//! Out: [`Anchor`]s, one-sided constraints "the lookup at this UV reads
+//! this value", at surface points of every bilinear cell that has a free
+//! tap, with the contract's AO, SH (and visibility layer) traced at each
+//! point; the seams' solve ([`super::seams::solve::stitch`]) fits them
+//! together with the seams.
 //!
 //! Why: a texel whose centre lies outside its chart holds the value of the
 //! chart's point nearest its centre (up to 0.7 texels away), but every
@@ -23,12 +25,24 @@
 //! weights), restricted to the cells where something can move, with f
 //! traced at each point by [`FIT_RAYS`]-ray Monte Carlo.
 //!
+//! Inside a chart the same holds wherever the signal steps within a cell
+//! (a strap lying on the helmet, a column's foot on the floor): the texel
+//! centres sample a step at four points and the lookup between them draws
+//! a ramp that is wrong on both sides of it. A smooth signal is what the
+//! texels' own filtered values already reconstruct, and fit targets there
+//! only add their noise, so the fit reaches in only where the baked AO of
+//! a cell's four taps spans more than [`STEP`] ([`step_texels`]): the
+//! contact lines, a small share of the page.
+//!
 //! Points inside geometry (the contract's rule, [`validity`]) are left
 //! out: no camera sees them and their traced value is black. A triangle
 //! too small to hold a grid point in a cell with a free tap gets one at
 //! its centroid, and the cells where no tap's centre lies inside a
 //! triangle (a chart thinner than a texel there) get [`SLIVER_SUB`]^2
 //! points per grid cell, so slivers are fitted too.
+//!
+//! [`interior`]: super::seams::interior
+//! [`surface_triangles`]: crate::atlas::rasterize::surface_triangles
 
 use super::seams::Anchor;
 use super::seams::metric::taps;
@@ -53,15 +67,72 @@ pub const FIT_RAYS: u32 = 64;
 /// data term of 1.
 pub const FIT_WEIGHT: f32 = 0.5;
 
-/// Whether the border band is fitted (`--border`): `Fit`, the fit of
-/// [`anchors`] solved with the seams, or `Off`, border texels keeping
-/// their edge receivers' values.
+/// Least AO span of a cell's four taps (max - min) that makes it a step
+/// cell, fitted inside a chart ([`step_texels`]). A bilinear ramp
+/// misplaces a step by up to half a texel, so the error it leaves grows
+/// with the step's height; a smooth gradient spans a few hundredths per
+/// texel at most. Half of it doubles the cells, and the fit's noise where
+/// nothing steps takes back what the added cells gain (`docs/engine-view.md`).
+pub const STEP: f32 = 0.1;
+
+/// Which texels are fitted (`--border`): `Fit`, the border band and the
+/// step cells inside charts ([`step_texels`]); `Band`, the border band
+/// alone; `Off`, none (border texels keep their edge receivers' values).
+/// The fit's [`anchors`] are solved with the seams.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum BorderMode {
     #[default]
     Fit,
+    Band,
     Off,
+}
+
+/// The taps of every bilinear cell of a `width` x `height` page that
+/// holds a `covered` texel and whose four baked AO values span more than
+/// [`STEP`]: where the signal steps within a cell and the texels' own
+/// values, each sampled at its centre, do not make the lookup between
+/// them right.
+pub fn step_texels(ao: &[f32], covered: &[bool], width: u32, height: u32) -> Vec<bool> {
+    let (w, h) = (width as usize, height as usize);
+    let mut out = vec![false; w * h];
+    if w < 2 || h < 2 {
+        return out;
+    }
+    // Each row of cells marks its own two rows of texels; rows are
+    // joined in order (the result does not depend on the thread count).
+    let rows: Vec<Vec<usize>> = (0..h - 1)
+        .into_par_iter()
+        .map(|y| {
+            let mut cells = Vec::new();
+            for x in 0..w - 1 {
+                let taps = [
+                    y * w + x,
+                    y * w + x + 1,
+                    (y + 1) * w + x,
+                    (y + 1) * w + x + 1,
+                ];
+                if !taps.iter().any(|&t| covered[t]) {
+                    continue;
+                }
+                let (lo, hi) = taps
+                    .iter()
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &t| {
+                        (lo.min(ao[t]), hi.max(ao[t]))
+                    });
+                if hi - lo > STEP {
+                    cells.push(y * w + x);
+                }
+            }
+            cells
+        })
+        .collect();
+    for c in rows.into_iter().flatten() {
+        for t in [c, c + 1, c + w, c + w + 1] {
+            out[t] = true;
+        }
+    }
+    out
 }
 
 /// A page's traced fit (its [`anchors`]), kept by the page so that runs

@@ -63,6 +63,9 @@ pub struct BorderReport {
     pub ao_after: f64,
     /// Edge receivers fitted where they were baked ([`edge`]).
     pub edge_rows: usize,
+    /// Texels inside charts that the fit moves: the taps of its step
+    /// cells ([`border::step_texels`]) outside the border band.
+    pub step_texels: usize,
 }
 
 /// Float lightmap images, row-major, row 0 at the top (glTF v = 0).
@@ -168,13 +171,23 @@ pub fn build(
         ),
         false => Vec::new(),
     };
+    // The texels the solve moves: the border band (every texel but the
+    // interior ones) and, fitting, the step cells inside charts.
+    let mut free: Vec<bool> = (0..w * h)
+        .map(|t| !seams::interior(&lightmap.covered, w, h, t))
+        .collect();
+    let mut step_texels = 0;
+    if border_mode == BorderMode::Fit {
+        let steps = border::step_texels(&lightmap.ao, &lightmap.covered, w, h);
+        for (f, s) in free.iter_mut().zip(steps) {
+            step_texels += (s && !*f) as usize;
+            *f |= s;
+        }
+    }
     // The border fit's points, traced (once per page and free texels).
     let fit: Option<std::sync::Arc<border::FitTargets>> = match border_mode {
         BorderMode::Off => None,
-        BorderMode::Fit => {
-            let free: Vec<bool> = (0..w * h)
-                .map(|t| !seams::interior(&lightmap.covered, w, h, t))
-                .collect();
+        BorderMode::Fit | BorderMode::Band => {
             let layer = lightmap.visibility.is_some();
             let trace = |free: Vec<bool>| {
                 let tris = surface_triangles(p.meshes, p.atlas);
@@ -191,13 +204,13 @@ pub fn build(
                 })
             };
             let fit = match p.fit_cache {
-                None => trace(free),
+                None => trace(free.clone()),
                 Some(cache) => {
                     let mut kept = cache.lock().unwrap_or_else(|e| e.into_inner());
                     match &*kept {
                         Some(t) if t.layer == layer && t.free == free => t.clone(),
                         _ => {
-                            let t = trace(free);
+                            let t = trace(free.clone());
                             *kept = Some(t.clone());
                             t
                         }
@@ -237,7 +250,7 @@ pub fn build(
     };
     let fitted: Vec<seams::Anchor> = points.iter().chain(&edge.rows).cloned().collect();
     let seam_scale = match border_mode {
-        BorderMode::Fit => border::SEAM_SCALE,
+        BorderMode::Fit | BorderMode::Band => border::SEAM_SCALE,
         BorderMode::Off => 1.0,
     };
     let report = seams::stitch_page(
@@ -249,7 +262,7 @@ pub fn build(
         p.diagonal,
         w,
         h,
-        &lightmap.covered,
+        &free,
         &mut lightmap.ao,
         &mut lightmap.sh,
         lightmap.visibility.as_deref_mut(),
@@ -260,6 +273,7 @@ pub fn build(
         ao_before: fit_before,
         ao_after: gap(&lightmap),
         edge_rows: edge.rows.len(),
+        step_texels,
     });
     let seam_maps = before.map(|b| [b, map(&lightmap)]);
     timer.lap(if stitch { "seams" } else { "border solve" });

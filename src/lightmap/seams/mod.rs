@@ -124,8 +124,9 @@ pub fn write_channels(
 
 /// Stitches the page's images in place (AO clamped to [0, 1] after) along
 /// `seams` (bake units; `diagonal` turns lengths into world units).
-/// [`interior`] texels (by `covered`, the texels with a receiver of their
-/// own) keep their values; the others (border and gutter texels) move.
+/// The texels marked `free` move (border and gutter texels: every texel
+/// but the [`interior`] ones, and with the border fit its step cells'
+/// taps); the others keep their values.
 /// `anchors`: this page's side of seams that cross pages
 /// ([`anchor::anchors`]), pulled to their targets; `fitted`: the border
 /// fit's points ([`crate::lightmap::border`]), solved in the same system,
@@ -142,7 +143,7 @@ pub fn stitch_page(
     diagonal: f64,
     width: u32,
     height: u32,
-    covered: &[bool],
+    free: &[bool],
     ao: &mut [f32],
     sh: &mut [[f32; SH_COUNT]],
     visibility: Option<&mut [[f32; VIS_COUNT]]>,
@@ -152,7 +153,7 @@ pub fn stitch_page(
     let channels = channels(visibility.is_some());
     let (texels, values, solve) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
-        let fixed = |t: u32| interior(covered, width, height, t);
+        let fixed = |t: u32| !free[t as usize];
         let (w, h, scale) = (width, height, seam_scale);
         solve::stitch(
             seams,
