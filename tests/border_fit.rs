@@ -523,10 +523,10 @@ fn a_step_inside_a_chart_is_fitted_and_smooth_texels_stay_as_baked() {
     // The best the two step columns can do on these points: a 1D least
     // squares in their two values within the page's range (the lookups
     // read columns 11 to 14 along u only), a lower bound for any fit. The
-    // fit closes a good part of the gap to it; not all, as its solve clamps
-    // to the range after solving rather than within (the unconstrained
-    // optimum overshoots the step on both sides) and holds each texel near
-    // its baked value.
+    // fit closes a good part of the gap to it; not all, as its solve holds
+    // each texel near its baked value and keeps the range by one step of
+    // an active set (the texels the solve took past it clamped, their
+    // neighbours solved again), not by a constrained solve.
     let bound = step_optimum(&near);
     eprintln!("lower bound {bound}");
     assert!(

@@ -605,6 +605,23 @@ fn a_resolution_too_small_for_the_charts_relaxes_padding_with_a_warning() {
             b.receivers.len()
         );
     }
+    // Fits as asked, but starved: at 96 (9,216 texels, 30 per chart)
+    // padding 2 leaves each chart its minimum width of 2 texels or less
+    // (under 10% of the page covered); with padding 1 each gets about
+    // 3.5 across.
+    let b = bake(96).unwrap();
+    let relaxed = b.atlas.relaxed.expect("relaxed");
+    assert!(relaxed.starved && relaxed.padding == 1, "{relaxed:?}");
+    assert!(
+        b.report
+            .warnings
+            .iter()
+            .any(|w| w.contains("would cover under 10%")),
+        "{:?}",
+        b.report.warnings
+    );
+    assert!(b.atlas.utilization > 0.3, "{}", b.atlas.utilization);
+    assert!(b.receivers.len() >= 300 * 16, "{}", b.receivers.len());
     // Roomy enough: nothing relaxed, no warning.
     let b = bake(512).unwrap();
     assert_eq!(b.atlas.relaxed, None);

@@ -325,11 +325,20 @@ pub fn write(
     };
     let mut warnings = scene.warnings.clone();
     if let (Some(relaxed), AtlasSize::Resolution(r)) = (level.atlas.relaxed, s.size) {
+        let why = match relaxed.starved {
+            true => format!(
+                "with padding {} and minimum chart width {} the charts would cover under {:.0}% of one {r}x{r} page",
+                s.padding,
+                s.min_chart_width,
+                100.0 * crate::atlas::unwrap::STARVED_UTILIZATION
+            ),
+            false => format!(
+                "the {} charts do not fit one {r}x{r} page with padding {} and minimum chart width {}",
+                level.atlas.charts, s.padding, s.min_chart_width
+            ),
+        };
         warnings.push(format!(
-            "the {} charts do not fit one {r}x{r} page with padding {} and minimum chart width {}: packed with padding {} and minimum chart width {}{} (raise --resolution for the requested ones)",
-            level.atlas.charts,
-            s.padding,
-            s.min_chart_width,
+            "{why}: packed with padding {} and minimum chart width {}{} (raise --resolution for the requested ones)",
             relaxed.padding,
             relaxed.min_chart_width,
             if relaxed.padding == 0 {

@@ -201,23 +201,61 @@ pub fn stitch_page(
                 (lo, hi)
             })
     });
-    let mut clamped = Vec::new();
-    for (k, &t) in texels.iter().enumerate() {
-        let (t, mut at) = (t as usize, &values[k * channels..(k + 1) * channels]);
-        if let Some((lo, hi)) = &range {
-            clamped.clear();
-            clamped.extend((0..channels).map(|c| at[c].clamp(lo[c], hi[c])));
-            at = &clamped;
+    // Where the AO solved falls outside the range, clamping it leaves its
+    // neighbours fitted to a value it no longer holds (a step into black:
+    // the optimum overshoots on both sides). One step of an active set:
+    // those texels keep their clamped values and the free texels within
+    // two of them are solved again around them, from their baked values.
+    let again = range.as_ref().and_then(|(lo, hi)| {
+        let over: Vec<u32> = (texels.iter().enumerate())
+            .filter(|&(k, _)| !(lo[0]..=hi[0]).contains(&values[k * channels]))
+            .map(|(_, &t)| t)
+            .collect();
+        (!over.is_empty()).then(|| around(&over, free, width, height))
+    });
+    // The baked values of the texels solved again, by texel.
+    let saved = again.as_ref().map(|again| {
+        let mut slot = vec![u32::MAX; free.len()];
+        let mut saved = vec![0.0f32; again.len() * channels];
+        let v = visibility.as_deref();
+        for (k, &t) in again.iter().enumerate() {
+            slot[t as usize] = k as u32;
+            write_channels(
+                ao,
+                sh,
+                v,
+                t as usize,
+                &mut saved[k * channels..(k + 1) * channels],
+            );
         }
-        ao[t] = at[0].clamp(0.0, 1.0);
-        sh[t].copy_from_slice(&at[1..1 + SH_COUNT]);
-        // c0 = Y0 AO holds for every baked and target value, so for the
-        // solve's too; the clamp keeps it (a white environment relights
-        // as the AO). One-sided anchors overshoot [0, 1] more often.
-        sh[t][0] += crate::sh::K0 as f32 * (ao[t] - at[0]);
-        if let Some(v) = visibility.as_deref_mut() {
-            v[t].copy_from_slice(&at[1 + SH_COUNT..]);
-        }
+        (slot, saved)
+    });
+    let vis = visibility.as_deref_mut();
+    write_solved(&texels, &values, range.as_ref(), ao, sh, vis);
+    let mut solve = solve;
+    if let Some((slot, saved)) = saved {
+        let (texels, values, second) = {
+            let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
+            let (w, h, scale) = (width, height, seam_scale);
+            solve::stitch(
+                seams,
+                anchors,
+                fitted,
+                w,
+                h,
+                scale,
+                channels,
+                |t| slot[t as usize] == u32::MAX,
+                data_weight,
+                |t, out| match slot[t as usize] {
+                    u32::MAX => write_channels(ao, sh, v, t as usize, out),
+                    k => out.copy_from_slice(&saved[k as usize * channels..][..channels]),
+                },
+            )
+        };
+        write_solved(&texels, &values, range.as_ref(), ao, sh, visibility);
+        solve.max_iterations = solve.max_iterations.max(second.max_iterations);
+        solve.converged &= second.converged;
     }
     let after = metric::measure(seams, width, height, ao, sh);
     let cross_page = (!anchors.is_empty()).then(|| CrossPageFigures {
@@ -233,6 +271,57 @@ pub fn stitch_page(
         solve,
         cross_page,
     }
+}
+
+/// The solve's values (`channels` per texel of `texels`) into the page's
+/// images, each channel clamped to `range` where given and AO to [0, 1].
+fn write_solved(
+    texels: &[u32],
+    values: &[f32],
+    range: Option<&(Vec<f32>, Vec<f32>)>,
+    ao: &mut [f32],
+    sh: &mut [[f32; SH_COUNT]],
+    mut visibility: Option<&mut [[f32; VIS_COUNT]]>,
+) {
+    let channels = values.len() / texels.len().max(1);
+    let mut clamped = Vec::new();
+    for (k, &t) in texels.iter().enumerate() {
+        let (t, mut at) = (t as usize, &values[k * channels..(k + 1) * channels]);
+        if let Some((lo, hi)) = range {
+            clamped.clear();
+            clamped.extend((0..channels).map(|c| at[c].clamp(lo[c], hi[c])));
+            at = &clamped;
+        }
+        ao[t] = at[0].clamp(0.0, 1.0);
+        sh[t].copy_from_slice(&at[1..1 + SH_COUNT]);
+        // c0 = Y0 AO holds for every baked and target value, so for the
+        // solve's too; the clamp keeps it (a white environment relights
+        // as the AO). One-sided anchors overshoot [0, 1] more often.
+        sh[t][0] += crate::sh::K0 as f32 * (ao[t] - at[0]);
+        if let Some(v) = visibility.as_deref_mut() {
+            v[t].copy_from_slice(&at[1 + SH_COUNT..]);
+        }
+    }
+}
+
+/// The `free` texels of a `width` x `height` page within two texels
+/// (Chebyshev) of one of `over`, less those: in texel order.
+fn around(over: &[u32], free: &[bool], width: u32, height: u32) -> Vec<u32> {
+    let mut mark = vec![false; free.len()];
+    for &t in over {
+        let (x, y) = (t % width, t / width);
+        for j in y.saturating_sub(2)..=(y + 2).min(height - 1) {
+            for i in x.saturating_sub(2)..=(x + 2).min(width - 1) {
+                mark[(j * width + i) as usize] = true;
+            }
+        }
+    }
+    for &t in over {
+        mark[t as usize] = false;
+    }
+    (0..free.len() as u32)
+        .filter(|&t| mark[t as usize] && free[t as usize])
+        .collect()
 }
 
 /// A grey map of the page for `--debug-dir`: each texel under one of the
