@@ -170,7 +170,7 @@ macro_rules! bake_tests {
 bake_tests! {
     boombox_tiny_scale: "boombox_tiny_scale.glb" at 256;
     cornell_box: "cornell_box.glb" at 256;
-    dense_city_diorama: "dense_city_diorama.glb" at 1024;
+    dense_city_diorama: "dense_city_diorama.glb" at 256;
     flight_helmet: "flight_helmet.glb" at 512;
     foliage_tree_cesium: "foliage_tree_cesium.glb" at 256;
     lantern_quantized: "lantern_quantized.glb" at 256;

@@ -13,7 +13,7 @@
 //! off by up to ~0.7 texels of slope, and the cut's two sides disagree.
 
 use aobake::atlas::rasterize::{SurfaceTri, closest_point_barycentric, inside};
-use aobake::lightmap::border::{FIT_WEIGHT, SEAM_SCALE, points, step_texels};
+use aobake::lightmap::border::{FIT_WEIGHT, SEAM_SCALE, STEP, points, step_span, step_texels};
 use aobake::lightmap::seams::metric::taps;
 use aobake::lightmap::seams::{Anchor, Seam, interior, stitch_page};
 use aobake::sh::{K0, SH_COUNT};
@@ -459,12 +459,22 @@ fn a_step_inside_a_chart_is_fitted_and_smooth_texels_stay_as_baked() {
     // on the rows the chart covers (3 to 15) and the gutter rows beside
     // them (2 and 16, in cells with a covered tap); nothing else spans
     // more than STEP.
-    let steps = step_texels(&ao, &covered, w, h);
+    let steps = step_texels(&ao, &covered, w, h, STEP);
     for t in 0..w * h {
         let (x, y) = (t % w, t / w);
         let expected = (x == 12 || x == 13) && (2..=16).contains(&y);
         assert_eq!(steps[t as usize], expected, "texel ({x}, {y})");
     }
+    // Unfiltered Monte Carlo: a span its noise alone would reach is no
+    // step (four standard errors of 0.5 / sqrt(rays)), never under STEP.
+    assert_eq!(step_span(None), STEP);
+    assert_eq!(step_span(Some(64)), 0.25);
+    assert_eq!(step_span(Some(10_000)), STEP);
+    assert!(
+        step_texels(&ao, &covered, w, h, step_span(Some(1)))
+            .iter()
+            .all(|&s| !s)
+    );
     let band: Vec<bool> = (0..w * h).map(|t| !interior(&covered, w, h, t)).collect();
     let free: Vec<bool> = band.iter().zip(&steps).map(|(b, s)| *b || *s).collect();
     // Fresh surface points inside the chart's interior (two texels from

@@ -215,11 +215,13 @@ fn report_works_on_every_bakeable_shared_scene() {
         eprintln!("note: {} not found, test skipped", shared.display());
         return;
     }
-    // The smallest page each scene's charts fit on (as in tests/assets.rs).
+    // The smallest page each scene's charts fit on as asked (as in
+    // tests/assets.rs); the dense city at 256, where they fit relaxed
+    // (at 1024 its page is starved and packed 3.6x denser).
     let scenes = [
         ("boombox_tiny_scale.glb", 256),
         ("cornell_box.glb", 32),
-        ("dense_city_diorama.glb", 1024),
+        ("dense_city_diorama.glb", 256),
         ("flight_helmet.glb", 512),
         ("foliage_tree_cesium.glb", 256),
         ("lantern_quantized.glb", 256),

@@ -88,12 +88,25 @@ pub enum BorderMode {
     Off,
 }
 
+/// The least span of a step cell for a page whose values carry Monte
+/// Carlo noise of `noise_rays` rays per receiver (unfiltered `--method
+/// mc`; `None`: filtered, [`STEP`]): four standard errors of a binary
+/// estimate at its widest (0.5 / sqrt(rays)), so that noise alone spans it
+/// rarely, and never less than [`STEP`]. At 4 rays nothing is a step; at
+/// 400 and more, STEP.
+pub fn step_span(noise_rays: Option<u32>) -> f32 {
+    match noise_rays {
+        None => STEP,
+        Some(n) => STEP.max(2.0 / (n.max(1) as f32).sqrt()),
+    }
+}
+
 /// The taps of every bilinear cell of a `width` x `height` page that
 /// holds a `covered` texel and whose four baked AO values span more than
-/// [`STEP`]: where the signal steps within a cell and the texels' own
-/// values, each sampled at its centre, do not make the lookup between
-/// them right.
-pub fn step_texels(ao: &[f32], covered: &[bool], width: u32, height: u32) -> Vec<bool> {
+/// `span` ([`step_span`]): where the signal steps within a cell and the
+/// texels' own values, each sampled at its centre, do not make the lookup
+/// between them right.
+pub fn step_texels(ao: &[f32], covered: &[bool], width: u32, height: u32, span: f32) -> Vec<bool> {
     let (w, h) = (width as usize, height as usize);
     let mut out = vec![false; w * h];
     if w < 2 || h < 2 {
@@ -120,7 +133,7 @@ pub fn step_texels(ao: &[f32], covered: &[bool], width: u32, height: u32) -> Vec
                     .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &t| {
                         (lo.min(ao[t]), hi.max(ao[t]))
                     });
-                if hi - lo > STEP {
+                if hi - lo > span {
                     cells.push(y * w + x);
                 }
             }

@@ -110,6 +110,10 @@ pub struct PageBake<'a> {
     pub sigma_texels: Option<&'a [f32]>,
     /// The page's traced border fit from an earlier run, if any.
     pub fit_cache: Option<&'a border::FitCache>,
+    /// Rays per receiver where its values are unfiltered Monte Carlo
+    /// (`--method mc`), whose noise a step cell must stand out from
+    /// ([`border::step_span`]); `None` for the filtering methods.
+    pub noise_rays: Option<u32>,
 }
 
 /// What the lightmap stage made of a page.
@@ -178,7 +182,8 @@ pub fn build(
         .collect();
     let mut step_texels = 0;
     if border_mode == BorderMode::Fit {
-        let steps = border::step_texels(&lightmap.ao, &lightmap.covered, w, h);
+        let span = border::step_span(p.noise_rays);
+        let steps = border::step_texels(&lightmap.ao, &lightmap.covered, w, h, span);
         for (f, s) in free.iter_mut().zip(steps) {
             step_texels += (s && !*f) as usize;
             *f |= s;
