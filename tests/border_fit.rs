@@ -15,7 +15,7 @@
 use aobake::atlas::rasterize::{SurfaceTri, closest_point_barycentric, inside};
 use aobake::lightmap::border::{FIT_WEIGHT, SEAM_SCALE, STEP, points, step_span, step_texels};
 use aobake::lightmap::seams::metric::taps;
-use aobake::lightmap::seams::{Anchor, Seam, interior, stitch_page};
+use aobake::lightmap::seams::{Anchor, Seam, band, stitch_page};
 use aobake::sh::{K0, SH_COUNT};
 use glam::{Vec2, Vec3};
 use std::f32::consts::TAU;
@@ -148,7 +148,7 @@ fn solve(
     f: impl Fn(Vec3) -> f32,
     (w, h): (u32, u32),
 ) -> usize {
-    let free: Vec<bool> = (0..w * h).map(|t| !interior(covered, w, h, t)).collect();
+    let free = band(covered, w, h);
     solve_free(tris, ao, &free, center_inside, seams, f, (w, h))
 }
 
@@ -475,7 +475,7 @@ fn a_step_inside_a_chart_is_fitted_and_smooth_texels_stay_as_baked() {
             .iter()
             .all(|&s| !s)
     );
-    let band: Vec<bool> = (0..w * h).map(|t| !interior(&covered, w, h, t)).collect();
+    let band = band(&covered, w, h);
     let free: Vec<bool> = band.iter().zip(&steps).map(|(b, s)| *b || *s).collect();
     // Fresh surface points inside the chart's interior (two texels from
     // its edges): near the step, and beyond 2.5 texels of it.

@@ -177,9 +177,7 @@ pub fn build(
     };
     // The texels the solve moves: the border band (every texel but the
     // interior ones) and, fitting, the step cells inside charts.
-    let mut free: Vec<bool> = (0..w * h)
-        .map(|t| !seams::interior(&lightmap.covered, w, h, t))
-        .collect();
+    let mut free = seams::band(&lightmap.covered, w, h);
     let mut step_texels = 0;
     if border_mode == BorderMode::Fit {
         let span = border::step_span(p.noise_rays);

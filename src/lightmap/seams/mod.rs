@@ -151,22 +151,26 @@ pub fn stitch_page(
     let before = metric::measure(seams, width, height, ao, sh);
     let gap_before = anchor_gap(anchors, width, height, ao);
     let channels = channels(visibility.is_some());
-    let (texels, values, solve) = {
-        let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
-        let fixed = |t: u32| !free[t as usize];
-        let (w, h, scale) = (width, height, seam_scale);
+    // The page's solve with `fixed` texels held and `baked` values.
+    let stitch = |fixed: &dyn Fn(u32) -> bool, baked: &(dyn Fn(u32, &mut [f32]) + Sync)| {
         solve::stitch(
             seams,
             anchors,
             fitted,
-            w,
-            h,
-            scale,
+            width,
+            height,
+            seam_scale,
             channels,
             fixed,
             data_weight,
-            |t, out| write_channels(ao, sh, v, t as usize, out),
+            baked,
         )
+    };
+    let (texels, values, solve) = {
+        let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
+        stitch(&|t| !free[t as usize], &|t, out| {
+            write_channels(ao, sh, v, t as usize, out)
+        })
     };
     let mut visibility = visibility;
     // With the border fit, the solve keeps every channel within the range
@@ -236,18 +240,9 @@ pub fn stitch_page(
     if let Some((slot, saved)) = saved {
         let (texels, values, second) = {
             let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
-            let (w, h, scale) = (width, height, seam_scale);
-            solve::stitch(
-                seams,
-                anchors,
-                fitted,
-                w,
-                h,
-                scale,
-                channels,
-                |t| slot[t as usize] == u32::MAX,
-                data_weight,
-                |t, out| match slot[t as usize] {
+            stitch(
+                &|t| slot[t as usize] == u32::MAX,
+                &|t, out| match slot[t as usize] {
                     u32::MAX => write_channels(ao, sh, v, t as usize, out),
                     k => out.copy_from_slice(&saved[k as usize * channels..][..channels]),
                 },
@@ -356,4 +351,12 @@ pub fn interior(covered: &[bool], width: u32, height: u32, t: u32) -> bool {
         return false;
     }
     (y - 1..=y + 1).all(|j| (x - 1..=x + 1).all(|i| covered[(j * width + i) as usize]))
+}
+
+/// The border band of a `width` x `height` page: per texel, whether it is
+/// not [`interior`] (what the stitch moves, and the border fit fits).
+pub fn band(covered: &[bool], width: u32, height: u32) -> Vec<bool> {
+    (0..width * height)
+        .map(|t| !interior(covered, width, height, t))
+        .collect()
 }
