@@ -61,7 +61,8 @@ import { RawTexture } from '@babylonjs/core/Materials/Textures/rawTexture.js';
 import { RenderTargetTexture } from '@babylonjs/core/Materials/Textures/renderTargetTexture.js';
 import { Color4 } from '@babylonjs/core/Maths/math.color.js';
 import { Constants } from '@babylonjs/core/Engines/constants.js';
-import { EXTENSION, extensionProblem as contractProblem } from '../viewer/aobake-extension.js';
+import { EXTENSION, extensionProblem as contractProblem, filterOf } from '../viewer/aobake-extension.js';
+import { BICUBIC_GLSL } from '../viewer/aobake-glsl.js';
 import { basis9, project, radianceProduct } from '../viewer/aobake-sh.js';
 import { FALLBACK_GLSL, FRAME_GLSL, LAYER_GLSL } from './glsl.js';
 
@@ -148,6 +149,10 @@ export class AobakeLightmaps {
     this.problems = [];
     /** The root extension of the last file. */
     this.record = null;
+    /** The lookup the last file's texels are fitted for ('bilinear' or
+     * 'bicubic', the root's `filter`), and a test's override of it. */
+    this.filter = 'bilinear';
+    this._filterOverride = null;
     /** Row-major 3x3: glTF world directions to the scene's (the loader's root). */
     this.toScene = [1, 0, 0, 0, 1, 0, 0, 0, 1];
     this._scene = null;
@@ -175,6 +180,21 @@ export class AobakeLightmaps {
     if (!(mode in MODES)) throw new Error(`unknown mode ${mode}`);
     this.mode = MODES[mode];
     // The mode decides which occlusion the specular gets (a define).
+    for (const b of this.baked) b.material.markAsDirty(1);
+    this._scene?.resetCachedMaterial();
+  }
+
+  /** The lookup the materials sample with: the file's, unless overridden. */
+  get lookup() {
+    return this._filterOverride ?? this.filter;
+  }
+
+  /** Samples with 'bilinear' or 'bicubic' whatever the file says, or
+   * (null) as the file says: to compare the two paths on one file. */
+  setFilter(name) {
+    if (name !== null && name !== 'bilinear' && name !== 'bicubic') throw new Error(`unknown filter ${name}`);
+    this._filterOverride = name;
+    // The lookup is a define.
     for (const b of this.baked) b.material.markAsDirty(1);
     this._scene?.resetCachedMaterial();
   }
@@ -258,6 +278,7 @@ export class AobakeLightmaps {
     this.baked = [];
     this.problems = [];
     this.record = null;
+    this.filter = 'bilinear';
   }
 }
 
@@ -279,7 +300,7 @@ export function toBakeRows(m) {
  * and with the layer the normal-mapped diffuse and specular occlusion. */
 export class AobakeLightmapPlugin extends MaterialPluginBase {
   constructor(material, lightmaps, bake) {
-    super(material, 'AobakeLightmap', 200, { AOBAKE: false, AOBAKE_UVSET: 0, AOBAKE_VISIBILITY: false, AOBAKE_VCOUNT: 16 });
+    super(material, 'AobakeLightmap', 200, { AOBAKE: false, AOBAKE_UVSET: 0, AOBAKE_VISIBILITY: false, AOBAKE_VCOUNT: 16, AOBAKE_BICUBIC: false });
     this.lightmaps = lightmaps;
     // { texCoord, occlusion, sh: [3 textures], scale[9], offset[9], page,
     //   visibility: [3|4 textures] | null, vScale[], vOffset[] }
@@ -297,6 +318,7 @@ export class AobakeLightmapPlugin extends MaterialPluginBase {
     const layer = this.bake.visibility !== null;
     defines.AOBAKE_VISIBILITY = layer;
     defines.AOBAKE_VCOUNT = layer ? this.bake.vScale.length : 16;
+    defines.AOBAKE_BICUBIC = this.lightmaps.lookup === 'bicubic';
     // With the baked light on, the bake occludes the specular (the layer,
     // or the contract's cone of the AO without it, as the three.js plugin
     // does); Babylon's AO-based radiance occlusion would do it twice.
@@ -400,9 +422,18 @@ uniform sampler2D aobakeSH2;
 uniform sampler2D aobakeAO;
 // Level 0 (bilinear, as a CPU decoder reads) for the debug outputs: the
 // sampler's own minification would average a sliver's texels.
+#ifdef AOBAKE_BICUBIC
+// The file's texels are cubic B-spline coefficients (the root's filter).
+#define AOBAKE_FETCH(s, uv) (aobakeDebug > 0.5 ? texture2DLodEXT(s, uv, 0.0) : texture2D(s, uv))
+${BICUBIC_GLSL}
+vec4 aobakeTexel(sampler2D s) {
+  return aobakeBicubic(s, vAobakeUV);
+}
+#else
 vec4 aobakeTexel(sampler2D s) {
   return aobakeDebug > 0.5 ? texture2DLodEXT(s, vAobakeUV, 0.0) : texture2D(s, vAobakeUV);
 }
+#endif
 vec3 aobakeIrradiance() {
   vec4 a = aobakeTexel(aobakeSH0) * aobakeScale0 + aobakeOffset0;
   vec4 b = aobakeTexel(aobakeSH1) * aobakeScale1 + aobakeOffset1;
@@ -502,6 +533,9 @@ class AobakeLightmapExtension {
     lm.clear();
     lm._scene = scene;
     lm.record = json.extensions?.[EXTENSION] ?? null;
+    const { filter, problem } = filterOf(lm.record);
+    lm.filter = filter;
+    if (problem) lm.problems.push(problem);
     const root = loader.rootBabylonMesh;
     if (root) {
       root.computeWorldMatrix(true);

@@ -91,7 +91,8 @@ fn main() {
             if class == TexelClass::Interior {
                 continue;
             }
-            let err = (lookup(&decoded, uv).0 - probe.reference.ao[k]) as f64;
+            let err = (lookup(&decoded, uv, aobake::lightmap::Filter::Bilinear).0
+                - probe.reference.ao[k]) as f64;
             let tp = taps(uv, w, h);
             let mut wk = [0.0f32; 3];
             for &(t, wt) in &tp {

@@ -43,7 +43,7 @@ fn main() {
         let offset = (aobake::trace::ORIGIN_OFFSET
             + aobake::trace::ORIGIN_OFFSET_FOOTPRINT * r.footprint[k])
             * d;
-        let (ao, _) = engine_view::lookup(&decoded, p.uv[k]);
+        let (ao, _) = engine_view::lookup(&decoded, p.uv[k], aobake::lightmap::Filter::Bilinear);
         let class =
             match engine_view::class_of(p.uv[k], decoded.width, decoded.height, &probe.centers) {
                 TexelClass::Interior => 0,

@@ -189,6 +189,7 @@ fn solve_free(
         1.0,
         w,
         h,
+        aobake::lightmap::Filter::Bilinear,
         free,
         ao,
         &mut sh,

@@ -87,14 +87,22 @@ fn a_bake_of_a_uniform_answer_shows_no_error_anywhere_and_spoiled_borders_show()
     let points = engine_view::surface_points(&tris, lm.width, lm.height, 6000, 5);
     let reference =
         engine_view::reference(&points, &level.tracer, level.max_distance, 512, 5, false);
-    let spoiled = engine_view::measure(&points, &lm, &reference, &centers, &[], 0);
+    let spoiled = engine_view::measure(
+        &points,
+        &lm,
+        aobake::lightmap::Filter::Bilinear,
+        &reference,
+        &centers,
+        &[],
+        0,
+    );
     assert!(spoiled.interior.ao_rmse < 0.02, "{spoiled:?}");
     assert!(spoiled.border.ao_rmse > 0.15, "{spoiled:?}");
     assert!(spoiled.border.ao_error_share > 0.9, "{spoiled:?}");
     // Classes are what the taps say.
     for (k, &uv) in points.uv.iter().enumerate().take(200) {
         let class = engine_view::class_of(uv, lm.width, lm.height, &centers);
-        let (ao, _) = engine_view::lookup(&lm, uv);
+        let (ao, _) = engine_view::lookup(&lm, uv, aobake::lightmap::Filter::Bilinear);
         if class == TexelClass::Interior {
             assert!((ao - reference.ao[k]).abs() < 0.1, "point {k}");
         }

@@ -61,3 +61,16 @@ export function extensionProblem(ext, json) {
   return null;
 }
 
+
+/** The lookup a file's texels are fitted for (the root extension's
+ * `filter`): { filter: 'bilinear' | 'bicubic', problem: null | one line }.
+ * Absent: bilinear. A value this reader does not know is read bilinearly,
+ * with a problem line saying so. */
+export function filterOf(record) {
+  const f = record?.filter ?? 'bilinear';
+  if (f === 'bilinear' || f === 'bicubic') return { filter: f, problem: null };
+  return {
+    filter: 'bilinear',
+    problem: `${EXTENSION} filter ${JSON.stringify(f)} is not one this reader knows (bilinear, bicubic): read bilinearly`,
+  };
+}

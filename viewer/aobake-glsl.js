@@ -97,3 +97,31 @@ float aobakeConeOcclusion(vec3 bent, float ao, vec3 R, float r) {
   return clamp(mix(0.0, min(full, 1.0), overlap), 0.0, 1.0);
 }
 `;
+
+// The contract's bicubic lookup (`"filter": "bicubic"` in the root's
+// AOBAKE_lightmap): the uniform cubic B-spline over 4 x 4 texels, clamp to
+// edge, as four bilinear fetches (Sigg and Hadwiger, GPU Gems 2, ch. 20:
+// per axis the taps' weights pair up as g0 = w0 + w1 at a point between
+// taps 0 and 1, g1 = w2 + w3 between 2 and 3). In (declared before this
+// chunk): AOBAKE_FETCH(s, uv), the importer's bilinear fetch. Out:
+// aobakeBicubic(s, uv).
+export const BICUBIC_GLSL = /* glsl */ `
+vec4 aobakeBicubic(sampler2D s, vec2 uv) {
+  vec2 size = vec2(textureSize(s, 0));
+  vec2 x = uv * size - 0.5;
+  vec2 i = floor(x);
+  vec2 f = x - i;
+  vec2 g = 1.0 - f;
+  vec2 w0 = g * g * g / 6.0;
+  vec2 w1 = (3.0 * f * f * f - 6.0 * f * f + 4.0) / 6.0;
+  vec2 w2 = (-3.0 * f * f * f + 3.0 * f * f + 3.0 * f + 1.0) / 6.0;
+  vec2 w3 = f * f * f / 6.0;
+  vec2 g0 = w0 + w1;
+  vec2 g1 = w2 + w3;
+  // Fetch points in texel-centre units (i - 1 + w1 / g0 lies between taps
+  // i - 1 and i), back to UV.
+  vec2 h0 = (i - 1.0 + w1 / g0 + 0.5) / size;
+  vec2 h1 = (i + 1.0 + w3 / g1 + 0.5) / size;
+  return g0.y * (g0.x * AOBAKE_FETCH(s, vec2(h0.x, h0.y)) + g1.x * AOBAKE_FETCH(s, vec2(h1.x, h0.y)))
+       + g1.y * (g0.x * AOBAKE_FETCH(s, vec2(h0.x, h1.y)) + g1.x * AOBAKE_FETCH(s, vec2(h1.x, h1.y)));
+}`;

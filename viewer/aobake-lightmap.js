@@ -62,11 +62,11 @@ import {
   RGBAFormat,
   Vector3,
 } from 'three';
-import { EXTENSION, extensionProblem } from './aobake-extension.js';
+import { EXTENSION, extensionProblem, filterOf } from './aobake-extension.js';
 import { radianceProduct } from './aobake-sh.js';
-import { CONE_GLSL, VISIBILITY_GLSL } from './aobake-glsl.js';
+import { BICUBIC_GLSL, CONE_GLSL, VISIBILITY_GLSL } from './aobake-glsl.js';
 
-export { EXTENSION, extensionProblem };
+export { EXTENSION, extensionProblem, filterOf };
 
 /** Output modes of the patched materials. */
 export const MODES = { off: 0, ao: 1, sh: 2 };
@@ -107,7 +107,24 @@ export class AobakeLightmaps {
     this.problems = [];
     /** The root extension (version, method, rays, ...) of the last file. */
     this.record = null;
+    /** The lookup the last file's texels are fitted for ('bilinear' or
+     * 'bicubic', the root's `filter`), and a test's override of it. */
+    this.filter = 'bilinear';
+    this._filterOverride = null;
     this._samplingLevel0 = false;
+  }
+
+  /** The lookup the materials sample with: the file's, unless overridden. */
+  get lookup() {
+    return this._filterOverride ?? this.filter;
+  }
+
+  /** Samples with 'bilinear' or 'bicubic' whatever the file says, or
+   * (null) as the file says: to compare the two paths on one file. */
+  setFilter(name) {
+    if (name !== null && name !== 'bilinear' && name !== 'bicubic') throw new Error(`unknown filter ${name}`);
+    this._filterOverride = name;
+    for (const b of this.baked) setLookup(b.material, this.lookup);
   }
 
   /** Environment radiance SH (a THREE.SphericalHarmonics3, or 9 Vector3). */
@@ -165,6 +182,7 @@ export class AobakeLightmaps {
     this.baked = [];
     this.problems = [];
     this.record = null;
+    this.filter = 'bilinear';
   }
 }
 
@@ -186,6 +204,9 @@ export class AobakeLightmapPlugin {
     const lm = this.lightmaps;
     lm.clear();
     lm.record = json.extensions?.[EXTENSION] ?? null;
+    const { filter, problem } = filterOf(lm.record);
+    lm.filter = filter;
+    if (problem) lm.problems.push(problem);
     const jobs = [];
     gltf.scene.traverse((obj) => {
       if (!obj.isMesh) return;
@@ -259,11 +280,21 @@ uniform vec3 aobakeEnvSH[9];
 uniform int aobakeMode;
 uniform int aobakeDebug;
 
+// Every lightmap texture's value at the fragment, through the lookup the
+// file's texels are fitted for (the root's filter).
+#ifdef AOBAKE_BICUBIC
+#define AOBAKE_FETCH(s, uv) texture2D(s, uv)
+${BICUBIC_GLSL}
+#define aobakeTexel(s) aobakeBicubic(s, vAobakeUv)
+#else
+#define aobakeTexel(s) texture2D(s, vAobakeUv)
+#endif
+
 // sum_i c_i L_i = (1/pi) Int V max(0, n.w) L(w) dw (the contract's decode).
 vec3 aobakeIrradiance() {
-  vec4 a = texture2D(aobakeSh0, vAobakeUv);
-  vec4 b = texture2D(aobakeSh1, vAobakeUv);
-  float c8 = texture2D(aobakeSh2, vAobakeUv).r;
+  vec4 a = aobakeTexel(aobakeSh0);
+  vec4 b = aobakeTexel(aobakeSh1);
+  float c8 = aobakeTexel(aobakeSh2).r;
   float ch[9] = float[9](a.r, a.g, a.b, a.a, b.r, b.g, b.b, b.a, c8);
   vec3 result = vec3(0.0);
   for (int i = 0; i < 9; i++) {
@@ -281,8 +312,8 @@ uniform float aobakeVScale[16];
 uniform float aobakeVOffset[16];
 uniform sampler2D aobakeP;
 void aobakeLayer(out float v[16]) {
-  vec4 t[4] = vec4[4](texture2D(aobakeV0, vAobakeUv), texture2D(aobakeV1, vAobakeUv),
-                      texture2D(aobakeV2, vAobakeUv), texture2D(aobakeV3, vAobakeUv));
+  vec4 t[4] = vec4[4](aobakeTexel(aobakeV0), aobakeTexel(aobakeV1),
+                      aobakeTexel(aobakeV2), aobakeTexel(aobakeV3));
   for (int i = 0; i < 16; i++) {
     v[i] = i < AOBAKE_VCOUNT ? aobakeVScale[i] * t[i / 4][i % 4] + aobakeVOffset[i] : 0.0;
   }
@@ -294,12 +325,12 @@ ${VISIBILITY_GLSL}
 // (the contract's fallback; aobake-glsl.js).
 ${CONE_GLSL}
 float aobakeSpecularOcclusion(vec3 n, vec3 R, float r) {
-  vec4 a = texture2D(aobakeSh0, vAobakeUv);
+  vec4 a = aobakeTexel(aobakeSh0);
   vec3 bent = vec3(aobakeShScale[3] * a.a + aobakeShOffset[3],
                    aobakeShScale[1] * a.g + aobakeShOffset[1],
                    aobakeShScale[2] * a.b + aobakeShOffset[2]);
   bent = length(bent) > 1e-6 ? normalize(bent) : n;
-  return aobakeConeOcclusion(bent, clamp(texture2D(aobakeAoTex, vAobakeUv).r, 0.0, 1.0), R, r);
+  return aobakeConeOcclusion(bent, clamp(aobakeTexel(aobakeAoTex).r, 0.0, 1.0), R, r);
 }
 #endif
 // The specular occlusion at the fragment, from main()'s variables: one
@@ -308,6 +339,16 @@ float aobakeSpecularOcclusion(vec3 n, vec3 R, float r) {
 // material.roughness adds its specular antialiasing.
 #define AOBAKE_SPECULAR_OCCLUSION() aobakeSpecularOcclusion(transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), transformNormalByInverseViewMatrix(reflect(-geometryViewDir, geometryNormal), viewMatrix), roughnessFactor)
 `;
+
+/** A patched material samples its lightmaps with `lookup` ('bilinear' or
+ * 'bicubic'): the AOBAKE_BICUBIC define. */
+function setLookup(material, lookup) {
+  const defines = { ...(material.defines ?? {}) };
+  if (lookup === 'bicubic') defines.AOBAKE_BICUBIC = '';
+  else delete defines.AOBAKE_BICUBIC;
+  material.defines = defines;
+  material.needsUpdate = true;
+}
 
 /** Patches a standard (or physical) material for the bake. */
 export function patchMaterial(material, lightmaps, textures, ext) {
@@ -338,6 +379,7 @@ export function patchMaterial(material, lightmaps, textures, ext) {
       AOBAKE_VCOUNT: String(ext.visibilityScale.length),
     };
   }
+  setLookup(material, lightmaps.lookup);
   material.userData.aobake = own;
   material.onBeforeCompile = (shader) => {
     Object.assign(shader.uniforms, own, lightmaps.uniforms);
@@ -388,14 +430,14 @@ export function patchMaterial(material, lightmaps, textures, ext) {
         '#include <aomap_fragment>',
         /* glsl */ `#include <aomap_fragment>
   if (aobakeMode == 1) {
-    reflectedLight.indirectDiffuse *= texture2D(aobakeAoTex, vAobakeUv).r;
+    reflectedLight.indirectDiffuse *= aobakeTexel(aobakeAoTex).r;
   }`,
       )
       .replace(
         '#include <dithering_fragment>',
         /* glsl */ `#include <dithering_fragment>
   if (aobakeDebug == 1) gl_FragColor = vec4(aobakeIrradiance(), 1.0);
-  else if (aobakeDebug == 2) gl_FragColor = vec4(vec3(texture2D(aobakeAoTex, vAobakeUv).r), 1.0);
+  else if (aobakeDebug == 2) gl_FragColor = vec4(vec3(aobakeTexel(aobakeAoTex).r), 1.0);
   else if (aobakeDebug == 3) gl_FragColor = vec4(vAobakeUv, 0.0, 1.0);
   else if (aobakeDebug == 4) gl_FragColor = vec4(AOBAKE_ENVIRONMENT(geometryNormal) / PI, 1.0);
 #ifdef AOBAKE_VISIBILITY
@@ -408,7 +450,8 @@ export function patchMaterial(material, lightmaps, textures, ext) {
   else if (aobakeDebug == 7) gl_FragColor = vec4(0.5 + 0.5 * transformNormalByInverseViewMatrix(nonPerturbedNormal, viewMatrix), 1.0);`,
       );
   };
-  material.customProgramCacheKey = () => `aobake-lightmap-v3-${hasLayer ? ext.visibilityScale.length : 0}`;
+  material.customProgramCacheKey = () =>
+    `aobake-lightmap-v4-${hasLayer ? ext.visibilityScale.length : 0}-${'AOBAKE_BICUBIC' in material.defines ? 'bicubic' : 'bilinear'}`;
   // The material's own occlusionTexture would multiply the indirect light
   // again: the bake's AO is applied by the modes above instead.
   material.aoMapIntensity = 0;

@@ -66,6 +66,8 @@ pub struct BakeRecord {
     pub max_distance: f64,
     pub width: u32,
     pub height: u32,
+    /// The lookup the texels are fitted for (written when not bilinear).
+    pub filter: crate::lightmap::Filter,
 }
 
 /// How the bake is written.
@@ -252,6 +254,9 @@ pub fn build_glb(
     }
     if let Some(order) = visibility_order {
         exts[EXTENSION]["visibilityOrder"] = json!(order);
+    }
+    if !record.filter.is_bilinear() {
+        exts[EXTENSION]["filter"] = json!(record.filter.name());
     }
     let used = obj.entry("extensionsUsed").or_insert_with(|| json!([]));
     if let Some(u) = used.as_array_mut()

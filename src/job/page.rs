@@ -19,6 +19,7 @@ use crate::gltf::Scene;
 use crate::gltf::write::{self, BakeRecord, OutputOptions};
 use crate::job::settings::{BakeSettings, Method, RunOptions, UvSource};
 use crate::lightmap::BorderReport;
+use crate::lightmap::Filter;
 use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
 use crate::lightmap::{self, Lightmap, PageBake};
@@ -172,6 +173,7 @@ impl Page<'_> {
             },
             s.seams,
             s.border,
+            s.filter,
             debug_dir.is_some(),
             timer,
         )?;
@@ -236,7 +238,8 @@ impl Page<'_> {
             seed,
             encoded.visibility.is_some(),
         );
-        self.engine_view_against(&probe, encoded).map(Some)
+        self.engine_view_against(&probe, encoded, s.filter)
+            .map(Some)
     }
 
     /// `count` surface points of this page uniform by area and their
@@ -265,16 +268,18 @@ impl Page<'_> {
     }
 
     /// The engine-view error of `encoded` (this page's written textures,
-    /// decoded as a GPU reads them) against `probe`.
+    /// decoded as a GPU reads them through `filter`) against `probe`.
     pub fn engine_view_against(
         &self,
         probe: &EngineProbe,
         encoded: &Encoded,
+        filter: Filter,
     ) -> Result<EngineView> {
         let decoded = crate::encode::decode(encoded)?;
         Ok(engine_view::measure(
             &probe.points,
             &decoded,
+            filter,
             &probe.reference,
             &probe.centers,
             &self.level.visibility_meshes,
@@ -315,6 +320,7 @@ pub fn write(
             max_distance: level.max_distance_world,
             width: level.atlas.width,
             height: level.atlas.height,
+            filter: s.filter,
         },
         occlusion: s.occlusion,
         visibility_meshes: level.visibility_meshes.clone(),

@@ -19,8 +19,8 @@ use crate::bake::adaptive::AdaptiveOptions;
 use crate::bake::sheared::ShearedOptions;
 use crate::error::{Error, Result};
 use crate::gltf::write::OcclusionMode;
-use crate::lightmap::BorderMode;
 use crate::lightmap::seams::SeamMode;
+use crate::lightmap::{BorderMode, Filter};
 use clap::{Arg, ArgAction, ArgMatches, Args, Command, FromArgMatches, ValueEnum};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -176,6 +176,13 @@ pub struct BakeSettings {
     #[arg(long, value_enum, default_value_t = Self::DEFAULT.border)]
     #[serde(default)]
     pub border: BorderMode,
+    /// The lookup the texels are fitted for and the file records: bilinear
+    /// (what a GPU's texture unit does), or bicubic (the cubic B-spline of
+    /// Godot's, Bevy's and Unity's bicubic lightmap sampling), whose texels
+    /// are fitted by least squares over the whole chart
+    #[arg(long, value_enum, default_value_t = Self::DEFAULT.filter)]
+    #[serde(default, skip_serializing_if = "Filter::is_bilinear")]
+    pub filter: Filter,
 }
 
 /// Largest `--min-chart-width`: wider than the bilinear footprint (2
@@ -204,6 +211,7 @@ impl BakeSettings {
         visibility_order: 3,
         seams: SeamMode::Stitch,
         border: BorderMode::Fit,
+        filter: Filter::Bilinear,
     };
 }
 

@@ -168,7 +168,7 @@ pub fn sweep(
         let engine_view = match &probe {
             Some(probe) => {
                 let out = prepared.finish(&passes, &s, &run, &mut StageTimer::new())?;
-                Some(prepared.engine_view_against(probe, &out.encoded)?)
+                Some(prepared.engine_view_against(probe, &out.encoded, s.filter)?)
             }
             None => None,
         };

@@ -66,6 +66,31 @@ export function bilinear(img, u, v, c) {
   );
 }
 
+/**
+ * Channel `c` of `img` at (u, v) through the contract's bicubic lookup
+ * (`"filter": "bicubic"`): the uniform cubic B-spline over the 4 x 4
+ * texels around (u, v), indices clamped to the edge, written out here from
+ * the spec's formula (16 taps, not the shader's four bilinear fetches).
+ */
+export function bspline(img, u, v, c) {
+  const x = u * img.width - 0.5;
+  const y = v * img.height - 0.5;
+  const x0 = Math.floor(x);
+  const y0 = Math.floor(y);
+  const B = (s) => [(1 - s) ** 3 / 6, (3 * s ** 3 - 6 * s ** 2 + 4) / 6, (-3 * s ** 3 + 3 * s ** 2 + 3 * s + 1) / 6, s ** 3 / 6];
+  const wx = B(x - x0);
+  const wy = B(y - y0);
+  let out = 0;
+  for (let b = 0; b < 4; b++) {
+    const j = Math.min(img.height - 1, Math.max(0, y0 - 1 + b));
+    for (let a = 0; a < 4; a++) {
+      const i = Math.min(img.width - 1, Math.max(0, x0 - 1 + a));
+      out += wx[a] * wy[b] * (img.data[(j * img.width + i) * 4 + c] / 255);
+    }
+  }
+  return out;
+}
+
 /** Every baked primitive's extension; the atlas is shared, so one. */
 export function lightmapOf(glb) {
   const exts = [];
@@ -78,13 +103,14 @@ export function lightmapOf(glb) {
   return exts;
 }
 
-/** The 9 coefficients c_i at (u, v), decoded per the contract. */
-export function coefficientsAt(images, ext, u, v) {
+/** The 9 coefficients c_i at (u, v), decoded per the contract, read with
+ * `sample` (bilinear, or bspline for a bicubic file). */
+export function coefficientsAt(images, ext, u, v, sample = bilinear) {
   const [, sh0, sh1, sh2] = images;
   const ch = [
-    bilinear(sh0, u, v, 0), bilinear(sh0, u, v, 1), bilinear(sh0, u, v, 2), bilinear(sh0, u, v, 3),
-    bilinear(sh1, u, v, 0), bilinear(sh1, u, v, 1), bilinear(sh1, u, v, 2), bilinear(sh1, u, v, 3),
-    bilinear(sh2, u, v, 0),
+    sample(sh0, u, v, 0), sample(sh0, u, v, 1), sample(sh0, u, v, 2), sample(sh0, u, v, 3),
+    sample(sh1, u, v, 0), sample(sh1, u, v, 1), sample(sh1, u, v, 2), sample(sh1, u, v, 3),
+    sample(sh2, u, v, 0),
   ];
   return ch.map((x, i) => ext.shScale[i] * x + ext.shOffset[i]);
 }

@@ -39,7 +39,8 @@ pub mod relight;
 use relight::{environments, relight_error};
 
 use super::Lightmap;
-use super::seams::metric::{bilinear, taps};
+use super::filter::Filter;
+use super::seams::metric::taps;
 
 /// Surface points of a page, uniform by world area: each a receiver (for
 /// the reference) with its lightmap UV.
@@ -160,13 +161,12 @@ pub enum TexelClass {
     Sliver,
 }
 
-/// The bilinear lookup of every channel at `uv` (glTF conventions, clamp to
-/// edge): AO and the 9 SH coefficients.
-pub fn lookup(lm: &Lightmap, uv: [f32; 2]) -> (f32, [f32; SH_COUNT]) {
-    let ao = (taps(uv, lm.width, lm.height).iter())
-        .map(|&(t, w)| w * lm.ao[t as usize])
-        .sum();
-    (ao, bilinear(&lm.sh, lm.width, lm.height, uv))
+/// The lookup through `filter` of every channel at `uv` (glTF
+/// conventions, clamp to edge): AO and the 9 SH coefficients.
+pub fn lookup(lm: &Lightmap, uv: [f32; 2], filter: Filter) -> (f32, [f32; SH_COUNT]) {
+    let (w, h) = (lm.width, lm.height);
+    let ao = filter.lookup1(&lm.ao, w, h, uv);
+    (ao, filter.lookup(&lm.sh, w, h, uv))
 }
 
 /// The error of one class of points.
@@ -255,6 +255,7 @@ impl Sums {
 pub fn measure(
     points: &SurfacePoints,
     lm: &Lightmap,
+    filter: Filter,
     reference: &PointReference,
     center_inside: &[bool],
     layer_meshes: &[bool],
@@ -272,7 +273,7 @@ pub fn measure(
             left_out += 1;
             continue;
         }
-        let (ao, sh) = lookup(lm, uv);
+        let (ao, sh) = lookup(lm, uv, filter);
         let ao_err = (ao - reference.ao[k]) as f64;
         let sh2: f64 = (sh.iter().zip(&reference.sh[k]))
             .map(|(a, b)| ((a - b) as f64).powi(2))
@@ -281,7 +282,7 @@ pub fn measure(
             .is_some_and(|&m| layer_meshes.get(m as usize).copied().unwrap_or(false));
         let relight = match layer {
             Some((v, rv)) if has_layer => {
-                let got = bilinear(v, lm.width, lm.height, uv);
+                let got = filter.lookup(v, lm.width, lm.height, uv);
                 let mut want = rv[k];
                 want[layer_count.min(VIS_COUNT)..].fill(0.0);
                 let n = points.receivers.normal[k];
@@ -427,7 +428,7 @@ mod tests {
         let all_out = reference(Vec::new());
         // Every centre inside: every point interior, error zero.
         let centers = vec![true; 64];
-        let v = measure(&p, &lm, &all_out, &centers, &[], 0);
+        let v = measure(&p, &lm, Filter::Bilinear, &all_out, &centers, &[], 0);
         assert_eq!(v.interior.points, 500);
         assert!(v.all.ao_rmse < 1e-6, "{}", v.all.ao_rmse);
         // Column 3's centres outside: points whose taps reach it are
@@ -436,7 +437,7 @@ mod tests {
         for y in 0..8 {
             centers[y * 8 + 3] = false;
         }
-        let v = measure(&p, &lm, &all_out, &centers, &[], 0);
+        let v = measure(&p, &lm, Filter::Bilinear, &all_out, &centers, &[], 0);
         let near = (p.uv.iter())
             .filter(|uv| (2.5..4.5).contains(&(uv[0] * 8.0)))
             .count();
@@ -444,11 +445,19 @@ mod tests {
         assert_eq!(v.sliver.points, 0);
         assert_eq!(v.interior.points + v.border.points, 500);
         // No centre inside: all slivers (and border).
-        let v = measure(&p, &lm, &all_out, &[false; 64], &[], 0);
+        let v = measure(&p, &lm, Filter::Bilinear, &all_out, &[false; 64], &[], 0);
         assert_eq!((v.sliver.points, v.border.points), (500, 500));
         // Inside points are left out.
         let inside: Vec<bool> = (0..500).map(|k| k % 5 == 0).collect();
-        let v = measure(&p, &lm, &reference(inside), &centers, &[], 0);
+        let v = measure(
+            &p,
+            &lm,
+            Filter::Bilinear,
+            &reference(inside),
+            &centers,
+            &[],
+            0,
+        );
         assert_eq!((v.all.points, v.inside), (400, 100));
     }
 

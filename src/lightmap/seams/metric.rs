@@ -10,6 +10,7 @@
 //! step (8/255 is what a viewer sees as a line).
 
 use super::find::Seam;
+use crate::lightmap::filter::Filter;
 use crate::sh::SH_COUNT;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -92,11 +93,12 @@ pub fn points(
     height: u32,
     ao: &[f32],
     sh: &[[f32; SH_COUNT]],
+    filter: Filter,
 ) -> Vec<SeamPoint> {
     let look = |uv: [f32; 2]| {
         let mut a = 0.0f64;
         let mut s = [0.0f64; SH_COUNT];
-        for (t, w) in taps(uv, width, height) {
+        for (t, w) in filter.taps(uv, width, height) {
             a += w as f64 * ao[t as usize] as f64;
             for (s, c) in s.iter_mut().zip(sh[t as usize]) {
                 *s += w as f64 * c as f64;
@@ -138,8 +140,9 @@ pub fn measure(
     height: u32,
     ao: &[f32],
     sh: &[[f32; SH_COUNT]],
+    filter: Filter,
 ) -> SeamFigures {
-    summarise(&points(seams, width, height, ao, sh))
+    summarise(&points(seams, width, height, ao, sh, filter))
 }
 
 /// [`SeamFigures`] of the metric's points: length-weighted mean, p95 and
@@ -210,7 +213,7 @@ mod tests {
         };
         let flat = vec![0.5f32; 64];
         let sh = vec![[0.1f32; SH_COUNT]; 64];
-        let f = measure(&[seam], w, h, &flat, &sh);
+        let f = measure(&[seam], w, h, &flat, &sh, Filter::Bilinear);
         assert!(
             f.ao_mean < 1e-6 && f.ao_p95 < 1e-6 && f.sh_rms_mean < 1e-6,
             "{f:?}"
@@ -220,7 +223,7 @@ mod tests {
         let step: Vec<f32> = (0..64)
             .map(|t| if t % 8 >= 4 { 0.7 } else { 0.5 })
             .collect();
-        let f = measure(&[seam], w, h, &step, &sh);
+        let f = measure(&[seam], w, h, &step, &sh, Filter::Bilinear);
         assert!((f.ao_mean - 0.2).abs() < 1e-6 && (f.ao_p95 - 0.2).abs() < 1e-6);
         assert_eq!(f.ao_over_8bit, 1.0);
     }

@@ -26,6 +26,7 @@ pub use metric::SeamFigures;
 pub use solve::Anchor;
 pub use solve::StitchStats;
 
+use super::filter::Filter;
 use crate::sh::{SH_COUNT, VIS_COUNT};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -86,14 +87,11 @@ pub struct CrossPageFigures {
 }
 
 /// Mean |AO lookup - AO target| over `anchors`.
-pub fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32]) -> f64 {
+pub fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32], filter: Filter) -> f64 {
     let sum: f64 = anchors
         .iter()
         .map(|a| {
-            let v: f32 = metric::taps(a.uv, width, height)
-                .iter()
-                .map(|&(t, w)| w * ao[t as usize])
-                .sum();
+            let v = filter.lookup1(ao, width, height, a.uv);
             (v - a.target[0]).abs() as f64
         })
         .sum();
@@ -132,7 +130,8 @@ pub fn write_channels(
 /// fit's points ([`crate::lightmap::border`]), solved in the same system,
 /// where a seam's rows (two-sided, and the anchors) are scaled by
 /// `seam_scale`; `data_weight(t)`: the weight of texel t's data term (1,
-/// less where an edge row holds its value: [`crate::lightmap::edge`]).
+/// less where an edge row holds its value: [`crate::lightmap::edge`]);
+/// `filter`: the lookup every row reads through.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
@@ -143,13 +142,14 @@ pub fn stitch_page(
     diagonal: f64,
     width: u32,
     height: u32,
+    filter: Filter,
     free: &[bool],
     ao: &mut [f32],
     sh: &mut [[f32; SH_COUNT]],
     visibility: Option<&mut [[f32; VIS_COUNT]]>,
 ) -> SeamReport {
-    let before = metric::measure(seams, width, height, ao, sh);
-    let gap_before = anchor_gap(anchors, width, height, ao);
+    let before = metric::measure(seams, width, height, ao, sh, filter);
+    let gap_before = anchor_gap(anchors, width, height, ao, filter);
     let channels = channels(visibility.is_some());
     // The page's solve with `fixed` texels held and `baked` values.
     let stitch = |fixed: &dyn Fn(u32) -> bool, baked: &(dyn Fn(u32, &mut [f32]) + Sync)| {
@@ -161,6 +161,7 @@ pub fn stitch_page(
             height,
             seam_scale,
             channels,
+            filter,
             fixed,
             data_weight,
             baked,
@@ -252,11 +253,11 @@ pub fn stitch_page(
         solve.max_iterations = solve.max_iterations.max(second.max_iterations);
         solve.converged &= second.converged;
     }
-    let after = metric::measure(seams, width, height, ao, sh);
+    let after = metric::measure(seams, width, height, ao, sh, filter);
     let cross_page = (!anchors.is_empty()).then(|| CrossPageFigures {
         points: anchors.len(),
         ao_before: gap_before,
-        ao_after: anchor_gap(anchors, width, height, ao),
+        ao_after: anchor_gap(anchors, width, height, ao, filter),
     });
     SeamReport {
         seams: seams.len(),
@@ -356,7 +357,37 @@ pub fn interior(covered: &[bool], width: u32, height: u32, t: u32) -> bool {
 /// The border band of a `width` x `height` page: per texel, whether it is
 /// not [`interior`] (what the stitch moves, and the border fit fits).
 pub fn band(covered: &[bool], width: u32, height: u32) -> Vec<bool> {
+    band_within(covered, width, height, 1)
+}
+
+/// The border band for a lookup reaching `reach` texels: per texel,
+/// whether some texel within `reach` (Chebyshev, the page's edge
+/// included) is not covered. `reach` 1: [`band`].
+pub fn band_within(covered: &[bool], width: u32, height: u32, reach: u32) -> Vec<bool> {
+    let (w, h, r) = (width as i64, height as i64, reach as i64);
     (0..width * height)
-        .map(|t| !interior(covered, width, height, t))
+        .into_par_iter()
+        .map(|t| {
+            let (x, y) = ((t % width) as i64, (t / width) as i64);
+            if x < r || y < r || x + r >= w || y + r >= h {
+                return true;
+            }
+            !(y - r..=y + r).all(|j| (x - r..=x + r).all(|i| covered[(j * w + i) as usize]))
+        })
+        .collect()
+}
+
+/// Per texel of a `width` x `height` page, whether a covered texel lies
+/// within `reach` (Chebyshev): every texel a lookup on the surface reads.
+pub fn reach(covered: &[bool], width: u32, height: u32, reach: u32) -> Vec<bool> {
+    let (w, h, r) = (width as i64, height as i64, reach as i64);
+    (0..width * height)
+        .into_par_iter()
+        .map(|t| {
+            let (x, y) = ((t % width) as i64, (t / width) as i64);
+            let (j0, j1) = ((y - r).max(0), (y + r).min(h - 1));
+            let (i0, i1) = ((x - r).max(0), (x + r).min(w - 1));
+            (j0..=j1).any(|j| (i0..=i1).any(|i| covered[(j * w + i) as usize]))
+        })
         .collect()
 }

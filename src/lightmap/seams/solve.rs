@@ -14,7 +14,8 @@
 //! solved by Jacobi-preconditioned conjugate gradients, in parallel.
 
 use super::find::Seam;
-use super::metric::{samples, taps};
+use super::metric::samples;
+use crate::lightmap::filter::Filter;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -102,6 +103,7 @@ pub fn stitch(
     height: u32,
     seam_scale: f64,
     channels: usize,
+    filter: Filter,
     fixed: impl Fn(u32) -> bool,
     data_weight: &(dyn Fn(u32) -> f64 + Sync),
     baked: impl Fn(u32, &mut [f32]) + Sync,
@@ -111,7 +113,8 @@ pub fn stitch(
     // they first appear): two-sided points (side A positive, side B
     // negative), then anchors.
     let tapped = |uv: [f32; 2], scale: f64| {
-        taps(uv, width, height)
+        filter
+            .taps(uv, width, height)
             .into_iter()
             .map(move |(t, w)| (t, scale * w as f64))
     };
@@ -505,7 +508,8 @@ mod tests {
             .collect();
         let before = values.clone();
         let sh = vec![[0.0f32; crate::sh::SH_COUNT]; (w * h) as usize];
-        let jump = |v: &[f32]| super::super::metric::measure(&[seam], w, h, v, &sh);
+        let jump =
+            |v: &[f32]| super::super::metric::measure(&[seam], w, h, v, &sh, Filter::Bilinear);
         assert!(jump(&values).ao_mean > 0.08);
         let (texels, new, stats) = stitch(
             &[seam],
@@ -515,6 +519,7 @@ mod tests {
             h,
             1.0,
             1,
+            Filter::Bilinear,
             |_| false,
             &|_| 1.0,
             |t, out| out[0] = values[t as usize],
@@ -559,6 +564,7 @@ mod tests {
             h,
             1.0,
             1,
+            Filter::Bilinear,
             |t| t % w < 3,
             &|_| 1.0,
             |t, out| out[0] = values[t as usize],
