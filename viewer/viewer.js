@@ -201,6 +201,12 @@ startPage('three', lightmaps, {
     /** Called with [position, target] when the user moves the camera. */
     onView: views.on,
     probe: probePixels,
+    /** Sample with 'bilinear' or 'bicubic' whatever the file says (null:
+     * as it says). */
+    setFilter(name) {
+      lightmaps.setFilter(name);
+      render();
+    },
     size: () => [canvas.width, canvas.height],
   },
 }, stage);

@@ -18,7 +18,8 @@ import { basename, extname, join, normalize } from 'node:path';
 import { build } from 'esbuild';
 import { bake, launch, repoDir, sharedAssets, tempDir, tiltedPlane } from '../../viewer/test/harness.mjs';
 import {
-  anchoredAgreement, coefficientsAt, largestDifference, lightmapOf, projectScalar, readGlb, textureImage, writeGlb,
+  anchoredAgreement, bilinear, bspline, coefficientsAt, largestDifference, lightmapOf, projectScalar, readGlb, textureImage,
+  writeGlb,
 } from '../../viewer/test/decode.mjs';
 
 const dir = tempDir();
@@ -91,6 +92,9 @@ function decoded(path) {
 
 before(async () => {
   files.cornell = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell.glb'), ['--resolution', '256', '--rays', '64']);
+  // Texels fitted for the bicubic lookup, coarse enough that it matters.
+  files.cornellBicubic = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell_bicubic.glb'),
+    ['--resolution', '48', '--rays', '64', '--filter', 'bicubic']);
   files.plane = bake(tiltedPlane(join(dir, 'plane_in.glb'), {
     material: { pbrMetallicRoughness: { metallicFactor: 0, roughnessFactor: 1 } },
   }), join(dir, 'plane.glb'), ['--resolution', '64', '--rays', '4096']);
@@ -121,13 +125,19 @@ after(async () => {
 
 /**
  * Probes `name` under each environment: the shader's c.L against the CPU's
- * at every probe pixel; returns the worst difference and its tolerance.
+ * at every probe pixel, the CPU reading the textures with `sample` and the
+ * importer with `filter` (null: as the file says); returns the pixels
+ * compared, the worst difference and how far the other lookup's c.L lies
+ * from the CPU's (`apart`).
  */
-async function relightMatches(name, environments, views = [[-Math.PI / 2, Math.PI / 2.5]]) {
+async function relightMatches(name, environments, views = [[-Math.PI / 2, Math.PI / 2.5]], { filter = null, sample = bilinear } = {}) {
   const page = await openPage();
   const status = await page.evaluate((u) => window.aobakeBabylon.load(u), `/files/${basename(files[name])}`);
   assert.deepEqual(status.problems, []);
   assert.ok(status.baked > 0);
+  if (filter) await page.evaluate((f) => window.aobakeBabylon.setFilter(f), filter);
+  const other = sample === bilinear ? bspline : bilinear;
+  let apart = 0;
   const { glb, exts } = decoded(files[name]);
   // Each page's extension (ranges) and decoded images.
   const pages = new Map();
@@ -162,8 +172,10 @@ async function relightMatches(name, environments, views = [[-Math.PI / 2, Math.P
         const [u, v, relit, pagePlus1] = probed[k];
         if (pagePlus1 < 0.5) continue;
         const { e, images } = pages.get(Math.round(pagePlus1) - 1);
-        const c = coefficientsAt(images, e, u, v);
+        const c = coefficientsAt(images, e, u, v, sample);
         const expected = c.reduce((s, ci, i) => s + ci * L[i], 0);
+        const alt = coefficientsAt(images, e, u, v, other).reduce((s, ci, i) => s + ci * L[i], 0);
+        apart = Math.max(apart, Math.abs(alt - expected));
         // Quantization of each c_i (half a step of its range, times |L_i|),
         // plus the two projections' difference.
         const tol = e.shScale.reduce((s, r, i) => s + (0.5 / 255) * r * Math.abs(L[i]), 0) + 1e-3 * scale + 1e-4;
@@ -188,7 +200,7 @@ async function relightMatches(name, environments, views = [[-Math.PI / 2, Math.P
   }
   assert.deepEqual(page.errors, []);
   await page.close();
-  return { total, worst: worstAll };
+  return { total, worst: worstAll, apart };
 }
 
 test('the loader root is a mirror, read from the scene', async () => {
@@ -204,6 +216,17 @@ test('the loader root is a mirror, read from the scene', async () => {
 
 test('Cornell box: uniform and directional environments relight as the decoded textures predict', async () => {
   await relightMatches('cornell', ['white', 'lobe+x', 'lobe-x', 'lobe+y', 'lobe-y', 'lobe+z']);
+});
+
+test('a file fitted for the bicubic lookup relights bicubically, and bilinearly when asked', async () => {
+  assert.equal(decoded(files.cornellBicubic).glb.json.extensions.AOBAKE_lightmap.filter, 'bicubic');
+  const envs = ['white', 'lobe+x', 'lobe-y'];
+  const bicubic = await relightMatches('cornellBicubic', envs, undefined, { sample: bspline });
+  const linear = await relightMatches('cornellBicubic', envs, undefined, { filter: 'bilinear', sample: bilinear });
+  console.log(`# cornell bicubic: the other lookup's c.L differs by up to ${bicubic.apart.toFixed(4)} (bicubic path) and ${linear.apart.toFixed(4)} (bilinear path)`);
+  // Each path matches its own CPU lookup within the tolerance (about
+  // 0.005) where the other lookup lies far off.
+  assert.ok(bicubic.apart > 0.05 && linear.apart > 0.05, `${bicubic.apart} ${linear.apart}`);
 });
 
 test('a tilted open plane: every coefficient matters', async () => {

@@ -97,6 +97,8 @@ window.aobakeBabylon = {
     camera.setTarget(map(target));
   },
   setMode: (m) => lightmaps.setMode(m),
+  /** Sample with 'bilinear' or 'bicubic' whatever the file says (null: as it says). */
+  setFilter: (f) => lightmaps.setFilter(f),
   /** Camera angles, and optionally its distance as a share of the view's. */
   view(alpha, beta, radius) {
     camera.alpha = alpha;

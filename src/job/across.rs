@@ -24,10 +24,10 @@
 use crate::atlas::PageSize;
 use crate::encode::{Encoded, from_byte, png, read_png, to_byte};
 use crate::error::Result;
+use crate::lightmap::Filter;
 use crate::lightmap::seams::anchor::point_count;
 use crate::lightmap::seams::find::CrossSeam;
 use crate::lightmap::seams::interior;
-use crate::lightmap::seams::metric::taps;
 use crate::lightmap::seams::solve::{StitchStats, System};
 use crate::sh::{K0, SH_COUNT, VIS_COUNT};
 use rayon::prelude::*;
@@ -125,21 +125,23 @@ fn quantized(v: f32, (scale, offset): (f32, f32)) -> u8 {
 
 /// One point of a seam: each side's taps as (texel id, weight).
 struct Point {
-    a: [(u32, f32); 4],
-    b: [(u32, f32); 4],
+    a: Vec<(u32, f32)>,
+    b: Vec<(u32, f32)>,
     /// Both pages have the visibility layer.
     layer: bool,
 }
 
 /// Runs the pass. `covered(page, needed)`: the page's covered texels,
 /// decided where `needed` is true. `seam_scale` scales the rows as the
-/// within-page stitch's. Returns per page its new images (`None`: its
+/// within-page stitch's; `filter`: the lookup the pages are read with.
+/// Returns per page its new images (`None`: its
 /// bytes are unchanged) and the report.
 pub fn close(
     seams: &[CrossSeam],
     pages: &[PageSize],
     encoded: &[&Encoded],
     seam_scale: f64,
+    filter: Filter,
     covered: impl Fn(u32, &[bool]) -> Vec<bool> + Sync,
 ) -> Result<(Vec<Option<Encoded>>, AcrossReport)> {
     let mut report = AcrossReport {
@@ -161,7 +163,10 @@ pub fn close(
             let side = |k: usize, id_of: &mut HashMap<(u32, u32), u32>, key: &mut Vec<_>| {
                 let page = seam.page[k];
                 let size = pages[page as usize];
-                taps(seam.at(k, t), size.width, size.height).map(|(texel, w)| {
+                (filter
+                    .taps(seam.at(k, t), size.width, size.height)
+                    .into_iter())
+                .map(|(texel, w)| {
                     let next = key.len() as u32;
                     let id = *id_of.entry((page, texel)).or_insert_with(|| {
                         key.push((page, texel));
@@ -169,6 +174,7 @@ pub fn close(
                     });
                     (id, w)
                 })
+                .collect::<Vec<_>>()
             };
             let a = side(0, &mut id_of, &mut key);
             let b = side(1, &mut id_of, &mut key);
@@ -298,7 +304,7 @@ pub fn close(
     }
     // The jump at every point, from the bytes before and after.
     let jumps = |ao: &dyn Fn(u32) -> f32| -> (f64, f64) {
-        let side = |s: &[(u32, f32); 4]| s.iter().map(|&(id, w)| w * ao(id)).sum::<f32>();
+        let side = |s: &[(u32, f32)]| s.iter().map(|&(id, w)| w * ao(id)).sum::<f32>();
         let mut j: Vec<f64> = points
             .iter()
             .map(|p| (side(&p.a) - side(&p.b)).abs() as f64)
@@ -409,7 +415,7 @@ mod tests {
     }
 
     fn lookup(ao: &[f32], uv: [f32; 2]) -> f32 {
-        taps(uv, 16, 16)
+        crate::lightmap::seams::metric::taps(uv, 16, 16)
             .iter()
             .map(|&(t, w)| w * ao[t as usize])
             .sum()
@@ -426,7 +432,7 @@ mod tests {
         // +d, under 3 points: minimise 4 d^2 + 3 (lambda s)^2 (J0 - 2 d)^2,
         // d = 12 (lambda s)^2 J0 / (8 + 24 (lambda s)^2).
         let s = 0.1;
-        let (out, report) = close(&seams, &pages, &refs, s, covered).unwrap();
+        let (out, report) = close(&seams, &pages, &refs, s, Filter::Bilinear, covered).unwrap();
         let j0 = (153.0 - 77.0) / 255.0;
         let l2 = (SEAM_WEIGHT * s).powi(2) as f32;
         let d = 12.0 * l2 * j0 / (8.0 + 24.0 * l2);
@@ -457,7 +463,7 @@ mod tests {
     fn at_the_stitch_weight_the_sides_meet_within_8_bits() {
         let (seams, pages, encoded) = two_pages();
         let refs: Vec<&Encoded> = encoded.iter().collect();
-        let (out, report) = close(&seams, &pages, &refs, 2.0, covered).unwrap();
+        let (out, report) = close(&seams, &pages, &refs, 2.0, Filter::Bilinear, covered).unwrap();
         assert!(report.ao_before > 0.29, "{report:?}");
         // The closed form leaves 8 J0 / (8 + 24 (2 lambda)^2) = 0.001;
         // the bytes add at most one step.
@@ -473,7 +479,7 @@ mod tests {
     fn no_seams_change_nothing() {
         let (_, pages, encoded) = two_pages();
         let refs: Vec<&Encoded> = encoded.iter().collect();
-        let (out, report) = close(&[], &pages, &refs, 2.0, covered).unwrap();
+        let (out, report) = close(&[], &pages, &refs, 2.0, Filter::Bilinear, covered).unwrap();
         assert!(out.iter().all(Option::is_none));
         assert_eq!(report.points, 0);
     }

@@ -147,6 +147,7 @@ impl<'a> Job<'a> {
                 &level.atlas.pages,
                 encoded,
                 scale,
+                self.settings.filter,
                 |k, needed| atlas::rasterize::covered(receivers, &level.atlas.page(k), needed),
             )?;
             closed = pages;

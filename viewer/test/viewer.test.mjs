@@ -11,7 +11,7 @@ import { readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { bake, launch, open, pick, repoDir, serve, sharedAssets, tempDir, tiltedPlane } from './harness.mjs';
 import {
-  anchoredAgreement, basis, coefficientsAt, largestDifference, lightmapOf, projectScalar, readGlb,
+  anchoredAgreement, basis, bilinear, bspline, coefficientsAt, largestDifference, lightmapOf, projectScalar, readGlb,
   textureImage, writeGlb,
 } from './decode.mjs';
 
@@ -79,6 +79,9 @@ before(async () => {
   // Several atlas pages: each primitive reads its own page's textures.
   files.sponzaPages = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza_pages.glb'),
     ['--texel-density', '5', '--page-size', '256', '--rays', '16', '--method', 'mc']);
+  // Texels fitted for the bicubic lookup, coarse enough that it matters.
+  files.cornellBicubic = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell_bicubic.glb'),
+    ['--resolution', '48', '--rays', '64', '--filter', 'bicubic']);
   files.plane = bake(tiltedPlane(join(dir, 'plane_in.glb')), join(dir, 'plane.glb'),
     ['--resolution', '64', '--rays', '4096']);
   // Every material of the helmet has a normal map: `auto` bakes the layer.
@@ -134,6 +137,44 @@ describe('uniform white environment: the relit irradiance is the baked AO', () =
       await page.close();
     });
   }
+});
+
+test('a file fitted for the bicubic lookup is sampled bicubically, and bilinearly when asked', async () => {
+  const page = await open(browser, server.url);
+  const status = await pick(page, files.cornellBicubic);
+  assert.equal(status.problems.length, 0, status.message);
+  const { glb, images } = decoded(files.cornellBicubic);
+  assert.equal(glb.json.extensions.AOBAKE_lightmap.filter, 'bicubic');
+  const pixels = await grid(page, 6);
+  const uv = await probe(page, 'uv', pixels);
+  const ao = {};
+  for (const f of [null, 'bilinear']) {
+    await page.evaluate((name) => window.aobakeViewer.setFilter(name), f);
+    ao[f ?? 'file'] = await probe(page, 'ao', pixels);
+  }
+  // The GPU's bilinear fetches weigh texels with a few bits of sub-texel
+  // precision; the CPU's taps are exact.
+  const tol = 1.5 / 255;
+  let n = 0;
+  let bicubicWorst = 0;
+  let bilinearWorst = 0;
+  let apart = 0;
+  for (let k = 0; k < pixels.length; k++) {
+    if (uv[k][3] !== 1 || ao.file[k][3] !== 1) continue;
+    const [u, v] = uv[k];
+    const b = bspline(images[0], u, v, 0);
+    const l = bilinear(images[0], u, v, 0);
+    bicubicWorst = Math.max(bicubicWorst, Math.abs(ao.file[k][0] - b));
+    bilinearWorst = Math.max(bilinearWorst, Math.abs(ao.bilinear[k][0] - l));
+    apart = Math.max(apart, Math.abs(b - l));
+    n++;
+  }
+  console.log(`# cornell bicubic: ${n} pixels, max |GPU - CPU| bicubic ${bicubicWorst.toExponential(2)}, bilinear path ${bilinearWorst.toExponential(2)} (tolerance ${tol.toFixed(5)}); the two lookups differ by up to ${apart.toFixed(4)}`);
+  assert.ok(n > 500, `${n} probe pixels`);
+  assert.ok(bicubicWorst <= tol && bilinearWorst <= tol, `${bicubicWorst} ${bilinearWorst} > ${tol}`);
+  assert.ok(apart > 10 * tol, `the lookups differ by ${apart} only: the test would not tell them apart`);
+  assert.deepEqual(page.errors, []);
+  await page.close();
 });
 
 describe('directional environments relight as the decoded textures predict', () => {
