@@ -45,6 +45,19 @@ pub struct ReceiverMesh {
     pub mirrored: bool,
 }
 
+impl ReceiverMesh {
+    /// Its triangles' total area (bake units; non-finite ones left out).
+    pub fn surface_area(&self) -> f64 {
+        (self.triangles.chunks_exact(3))
+            .map(|t| {
+                let p = [t[0], t[1], t[2]].map(|i| glam::Vec3::from(self.positions[i as usize]));
+                0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length() as f64
+            })
+            .filter(|a: &f64| a.is_finite())
+            .sum()
+    }
+}
+
 /// All geometry of a scene in bake space.
 #[derive(Debug, Clone)]
 pub struct BakeGeometry {

@@ -5,13 +5,14 @@
 //! [`Receivers`] (one point per covered texel, the paper's receivers).
 //!
 //! - [`unwrap`](mod@unwrap): charts and packing (`uvunwrap`), or an
-//!   existing UV set;
+//!   existing UV set; [`pages`] crops the last page;
 //! - [`rasterize`](mod@rasterize): covered texels into receivers,
 //!   conservative at chart edges;
 //! - [`order`]: the receivers in world-space Morton order, for the tracing
 //!   passes' caches.
 
 pub mod order;
+pub mod pages;
 pub mod rasterize;
 pub mod unwrap;
 

@@ -25,6 +25,7 @@
 pub mod adaptive;
 pub mod mc;
 pub mod sheared;
+pub mod signal;
 pub mod validity;
 pub mod visibility;
 

@@ -10,7 +10,13 @@
 //! is checked per page.
 
 use crate::atlas::{self, Atlas, AtlasSize, Receivers, UnwrapOptions};
+use crate::bake::signal::{self, TexelBudget};
 use crate::bake::validity;
+
+/// The share of a page a uniform atlas's charts cover, for the texel edge
+/// the signal's pre-pass floors distances at (the packer's utilisation on
+/// the shared assets lies near it).
+const UNIFORM_UTILIZATION: f64 = 0.5;
 use crate::error::{Error, Result};
 use crate::geometry::BakeGeometry;
 use crate::gltf::Scene;
@@ -105,6 +111,33 @@ impl Level {
         let label = |k: usize| {
             scene.geometries[scene.instances[geometry.receivers[k].instance].geometry].label()
         };
+        // Texels where the signal needs them: each mesh's density from a
+        // pre-pass over its triangles, traced before the unwrap (the
+        // uniform atlas's texel edge, bake units, floors the occluders'
+        // distance).
+        let signal =
+            (s.texel_budget == TexelBudget::Signal && s.uv == UvSource::Generate).then(|| {
+                let tracer =
+                    Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
+                let texel = match s.size {
+                    AtlasSize::Resolution(r) => {
+                        let area: f64 = (geometry.receivers.iter()).map(|m| m.surface_area()).sum();
+                        (area / (UNIFORM_UTILIZATION * r as f64 * r as f64)).sqrt()
+                    }
+                    AtlasSize::TexelDensity { density, .. } => 1.0 / (density * diagonal),
+                };
+                let d = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
+                let scales =
+                    signal::mesh_scales(&geometry.receivers, &tracer, d, texel as f32, s.seed);
+                (tracer, scales)
+            });
+        if signal.is_some() {
+            timer.lap("signal pre-pass");
+        }
+        let (early_tracer, scales) = match signal {
+            Some((t, s)) => (Some(t), Some(s)),
+            None => (None, None),
+        };
         let atlas = match (s.uv, s.size) {
             (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
                 let uvs = scene.lightmap_uvs(&geometry.receivers, set)?;
@@ -127,6 +160,7 @@ impl Level {
                     &geometry.receivers,
                     &options,
                     diagonal,
+                    scales.as_deref(),
                     &report,
                 );
                 pb.finish_and_clear();
@@ -180,7 +214,9 @@ impl Level {
                 MAX_BAKE_BYTES >> 30
             )));
         }
-        let tracer = Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
+        let tracer = early_tracer.unwrap_or_else(|| {
+            Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided)
+        });
         timer.lap("bvh");
         let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
         let cross_seams = if s.seams == SeamMode::Stitch && atlas.pages.len() > 1 {

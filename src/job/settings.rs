@@ -17,6 +17,7 @@
 use crate::atlas::{AtlasSize, Packing};
 use crate::bake::adaptive::AdaptiveOptions;
 use crate::bake::sheared::ShearedOptions;
+use crate::bake::signal::TexelBudget;
 use crate::error::{Error, Result};
 use crate::gltf::write::OcclusionMode;
 use crate::lightmap::seams::SeamMode;
@@ -183,6 +184,14 @@ pub struct BakeSettings {
     #[arg(long, value_enum, default_value_t = Self::DEFAULT.filter)]
     #[serde(default, skip_serializing_if = "Filter::is_bilinear")]
     pub filter: Filter,
+    /// How one page's texels are shared: uniform (the same texels per
+    /// world unit everywhere), or signal (a pre-pass of 16 rays per
+    /// triangle finds how close each mesh's occluders are, and meshes
+    /// whose occlusion varies finely get up to 2x the density, open ones
+    /// down to half)
+    #[arg(long, value_enum, default_value_t = Self::DEFAULT.texel_budget)]
+    #[serde(default, skip_serializing_if = "TexelBudget::is_uniform")]
+    pub texel_budget: TexelBudget,
 }
 
 /// Largest `--min-chart-width`: wider than the bilinear footprint (2
@@ -212,6 +221,7 @@ impl BakeSettings {
         seams: SeamMode::Stitch,
         border: BorderMode::Fit,
         filter: Filter::Bilinear,
+        texel_budget: TexelBudget::Uniform,
     };
 }
 

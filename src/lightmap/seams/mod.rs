@@ -17,6 +17,7 @@
 //!    solves those seams' two sides together: `crate::job::across`).
 
 pub mod anchor;
+pub mod cg;
 pub mod find;
 pub mod metric;
 pub mod solve;
