@@ -1,20 +1,39 @@
 // Screenshots for docs/engine-view.md: baked files shown AO-only under a
-// uniform white environment from two views of Sponza (the hall and the
-// arcade's vaults, mouldings and capitals), one PNG per file and view.
+// uniform white environment, one PNG per file and view. The views: Sponza's
+// (the hall, the arcade's vaults, mouldings and capitals, and a close-up
+// of them) by default, or with --views helmet the flight helmet's (the
+// goggles and straps, the hose and the leather, close up).
 //
 //   npm ci --prefix viewer
-//   node viewer/engine-view-shots.mjs OUT_DIR A.glb [B.glb ...]
+//   node viewer/engine-view-shots.mjs OUT_DIR [--views sponza|helmet] A.glb [B.glb ...]
 //
 // Serves the viewer with `aobake view` (target/release/aobake, or
 // AOBAKE_BIN) and drives headless Chromium (see test/harness.mjs).
 
 import { join } from 'node:path';
 import { launch, open, pick, serve } from './test/harness.mjs';
-const [out, ...files] = process.argv.slice(2);
-const views = {
-  hall: [[-13, 2.2, 0.8], [8, 4.5, -0.5]],
-  arcade: [[-6, 1.6, 3.2], [3, 5.5, 5.5]],
+const args = process.argv.slice(2);
+const out = args.shift();
+let preset = 'sponza';
+if (args[0] === '--views') {
+  args.shift();
+  preset = args.shift();
+}
+const files = args;
+const presets = {
+  sponza: {
+    hall: [[-13, 2.2, 0.8], [8, 4.5, -0.5]],
+    arcade: [[-6, 1.6, 3.2], [3, 5.5, 5.5]],
+    corbel: [[-4.9, 2.0, 4.4], [-3.5, 2.2, 6.0]],
+    capital: [[-4.86, 1.92, 3.03], [-3.14, 2.41, 2.78]],
+  },
+  helmet: {
+    goggles: [[0.14, 0.62, 0.42], [0.0, 0.56, 0.12]],
+    hose: [[0.3, 0.3, 0.38], [0.0, 0.25, 0.05]],
+  },
 };
+const views = presets[preset];
+if (!views) throw new Error(`unknown --views ${preset} (sponza, helmet)`);
 const server = await serve();
 const browser = await launch();
 try {

@@ -229,24 +229,14 @@ pub fn unwrap_with_progress(
             }
         }
     };
-    // Each mesh's density scale: its positions scaled about its first
-    // vertex (the unwrap sees only shapes, the packer sizes).
-    let scaled: Option<Vec<Vec<[f32; 3]>>> = scales.map(|scales| {
-        (meshes.iter().zip(scales))
-            .map(|(m, &s)| {
-                let o = m.positions.first().copied().unwrap_or([0.0; 3]);
-                (m.positions.iter())
-                    .map(|p| std::array::from_fn(|i| o[i] + s * (p[i] - o[i])))
-                    .collect()
-            })
-            .collect()
-    });
+    // Each mesh's density scale: the unwrapper's per-mesh factor from mesh
+    // to world units, which only the packer's sizes see.
     let inputs: Vec<uvunwrap::MeshInput> = meshes
         .iter()
         .enumerate()
-        .map(|(k, m)| {
-            let positions = scaled.as_ref().map_or(&m.positions[..], |s| &s[k][..]);
-            uvunwrap::MeshInput::new(positions, &m.triangles)
+        .map(|(k, m)| uvunwrap::MeshInput {
+            scale: scales.map_or(1.0, |s| s[k]),
+            ..uvunwrap::MeshInput::new(&m.positions, &m.triangles)
         })
         .collect();
     let opts = uvunwrap::Options {

@@ -408,6 +408,8 @@ describe('files the plugin cannot use', () => {
     prims[0].extensions.AOBAKE_lightmap.sh[1].index = 999;
     prims[1].extensions.AOBAKE_lightmap.shScale = prims[1].extensions.AOBAKE_lightmap.shScale.slice(0, 8);
     delete prims[2].extensions.AOBAKE_lightmap.occlusion;
+    // A lookup this reader does not know: read bilinearly, and said.
+    json.extensions.AOBAKE_lightmap.filter = 'lanczos';
     const path = join(dir, 'malformed.glb');
     writeFileSync(path, writeGlb(json, glb.bin));
     const page = await open(browser, server.url);
@@ -416,6 +418,7 @@ describe('files the plugin cannot use', () => {
     assert.match(status.message, /sh\[1\] names textures\[999\], which does not exist/);
     assert.match(status.message, /shScale must hold 9 numbers \(has 8\)/);
     assert.match(status.message, /occlusion has no texture index/);
+    assert.match(status.message, /filter "lanczos" is not one this reader knows \(bilinear, bicubic\): read bilinearly/);
     assert.match(status.message, /meshes\[\d+\]\.primitives\[\d+\]/);
     assert.equal(status.baked, prims.length - 3, 'the other primitives keep their bake');
     assert.ok((await canvasShowsSomething(page)).varied, 'the scene is drawn');
