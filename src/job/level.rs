@@ -134,10 +134,7 @@ impl Level {
         if signal.is_some() {
             timer.lap("signal pre-pass");
         }
-        let (early_tracer, scales) = match signal {
-            Some((t, s)) => (Some(t), Some(s)),
-            None => (None, None),
-        };
+        let (early_tracer, scales) = signal.unzip();
         let atlas = match (s.uv, s.size) {
             (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
                 let uvs = scene.lightmap_uvs(&geometry.receivers, set)?;

@@ -34,24 +34,6 @@ pub fn taps(uv: [f32; 2], width: u32, height: u32) -> [(u32, f32); 4] {
     ]
 }
 
-/// The bilinear lookup at `uv` of an image of `N` channels per texel
-/// ([`taps`]).
-#[inline]
-pub fn bilinear<const N: usize>(
-    image: &[[f32; N]],
-    width: u32,
-    height: u32,
-    uv: [f32; 2],
-) -> [f32; N] {
-    let mut out = [0.0; N];
-    for (t, w) in taps(uv, width, height) {
-        for (o, x) in out.iter_mut().zip(&image[t as usize]) {
-            *o += w * x;
-        }
-    }
-    out
-}
-
 /// Sample parameters along a seam: `per_texel` per texel of its longer
 /// side's UV length, at least three, at the centres of equal parts.
 pub fn samples(seam: &Seam, width: u32, height: u32, per_texel: f32) -> impl Iterator<Item = f32> {
