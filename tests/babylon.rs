@@ -6,7 +6,7 @@
 //! Needs node, `npm ci --prefix viewer`, `npm ci --prefix babylon` and the
 //! `chromium` package (`.ci/run` installs them). Without them the test says
 //! so and passes, except under CI (`CI` set) or with
-//! `AOBAKE_REQUIRE_BROWSER` set, where it fails.
+//! `AOBAKE_REQUIRE_TOOLS` set, where it fails.
 
 mod common;
 

@@ -411,6 +411,10 @@ fn written_ao(glb: &[u8], pages: usize) -> Vec<(u32, u32, Vec<f32>)> {
     out
 }
 
+/// The scene of the tests of seams across pages: smooth surfaces cut
+/// into many charts, spread over many small pages.
+const SCENE: &str = "generated/courtyard.glb";
+
 /// Mean AO jump at seams whose sides lie on different pages, each side
 /// looked up bilinearly in its own page's float lightmap (before
 /// encoding), and, with the output written, in the file's 8-bit AO.
@@ -469,30 +473,29 @@ fn cross_page_jump(
 /// page shows.
 #[test]
 fn seams_across_pages_are_stitched_to_a_shared_target_then_together() {
-    let Some(scene) = common::shared_scene("sponza_dabrovic.glb") else {
-        return;
-    };
+    let scene = common::bundled_scene(SCENE);
     use aobake::lightmap::seams::SeamMode;
     let (count, off, off_written) = cross_page_jump(&scene, SeamMode::Off);
     let (_, stitched, written) = cross_page_jump(&scene, SeamMode::Stitch);
     eprintln!(
-        "{count} cross-page seams: AO jump mean {off:.4} -> {stitched:.4} (pages alone) -> {written:.4} (the file)"
+        "{count} cross-page seams: AO jump mean {off:.5} -> {stitched:.5} (pages alone) -> {written:.5} (the file)"
     );
     assert!(count > 100, "{count} cross-page seams");
-    assert!(off > 0.05, "unstitched jump {off}");
+    // Open, the jumps are several 8-bit steps (1/255 = 0.0039) wide.
+    assert!(off > 0.015, "unstitched jump {off}");
     // Off, the pass does not run: the file holds the pages' own values.
     assert!(
         (off_written - off).abs() < 0.01,
         "{off} against {off_written}"
     );
-    // Each page alone closes its side part of the way (0.398x of the open
-    // jump before bent strips were cut into pieces, 0.404x after: more,
-    // shorter seams); the pass below is what closes them.
+    // Each page alone closes its side part of the way; the pass below is
+    // what closes them.
     assert!(stitched < 0.45 * off, "{off} -> {stitched}");
-    // Solved together: within the 8-bit steps (1/255 = 0.0039) of a
-    // closed seam, and well below the one-sided stitch.
+    // Solved together: within the 8-bit steps of a closed seam, and below
+    // the one-sided stitch although the file is quantised and the pages
+    // are not.
     assert!(
-        written < 0.006 && written < 0.5 * stitched,
+        written < 0.006 && written < 0.6 * stitched,
         "{stitched} -> {written}"
     );
 }
@@ -502,9 +505,7 @@ fn seams_across_pages_are_stitched_to_a_shared_target_then_together() {
 /// one-process report says what the pass did.
 #[test]
 fn a_merge_solves_the_seams_across_pages_as_one_process_does() {
-    let Some(input) = common::shared_path("sponza_dabrovic.glb") else {
-        return;
-    };
+    let input = common::asset_path(SCENE);
     let input = input.to_str().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let args = |out: &str| -> Vec<String> {

@@ -205,26 +205,23 @@ fn cli_writes_every_file_and_refuses_bad_budgets() {
     assert!(!dir.path().join("bad").exists());
 }
 
-/// Every bakeable scene in ../shared/assets gets a report (tiny budgets;
+/// Every bakeable test scene in `assets/` gets a report (tiny budgets;
 /// the scale-stability bakes, which unwrap the scene twice more, only on the
 /// scenes whose atlas fits in 256 texels).
 #[test]
-fn report_works_on_every_bakeable_shared_scene() {
-    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
-    if !shared.exists() {
-        eprintln!("note: {} not found, test skipped", shared.display());
-        return;
-    }
+fn report_works_on_every_bakeable_test_scene() {
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
     // The smallest page each scene's charts fit on as asked (as in
-    // tests/assets.rs); the dense city at 256, where they fit relaxed
-    // (at 1024 its page is starved and packed 3.6x denser).
+    // tests/assets.rs).
     let scenes = [
         ("boombox_tiny_scale.glb", 256),
         ("cornell_box.glb", 32),
-        ("dense_city_diorama.glb", 256),
         ("flight_helmet.glb", 512),
         ("foliage_tree_cesium.glb", 256),
-        ("lantern_quantized.glb", 256),
+        ("generated/cad_instances.glb", 512),
+        ("generated/courtyard.glb", 512),
+        ("generated/dense_detail.glb", 256),
+        ("../tests/data/lantern_quantized.glb", 256),
         ("mixed_lighting_sheen_chair.glb", 512),
         ("negative_scale_floor.glb", 32),
         ("primitive_mode_04_tristrip_nonindexed.glb", 32),
@@ -235,14 +232,12 @@ fn report_works_on_every_bakeable_shared_scene() {
         ("primitive_mode_14_triangles_u8_indices.glb", 32),
         ("simple_meshes_shared_mesh.glb", 32),
         ("simple_sparse_accessor.glb", 32),
-        ("sponza_dabrovic.glb", 512),
         ("thin_cloth_curtains_intel_sponza.glb", 1024),
         ("tricky_fern_mask_without_alpha.glb", 512),
-        ("two_cylinder_engine.glb", 512),
     ];
     for (name, resolution) in scenes {
         let start = std::time::Instant::now();
-        let scene = aobake::gltf::load(&shared.join(name)).unwrap();
+        let scene = aobake::gltf::load(&assets.join(name)).unwrap();
         let s = ReportSettings {
             resolution,
             include_defaults: false,

@@ -54,9 +54,10 @@ fn bake(sc: &aobake::gltf::Scene, seams: SeamMode) -> aobake::job::Baked {
         // band's fit, not the step cells' (at 8 rays noise spans more than
         // a step in many cells, and the test below checks that interior
         // texels stay as baked).
-        border: match seams {
-            SeamMode::Off => aobake::lightmap::BorderMode::Off,
-            SeamMode::Stitch => aobake::lightmap::BorderMode::Band,
+        border: if seams == SeamMode::Off {
+            aobake::lightmap::BorderMode::Off
+        } else {
+            aobake::lightmap::BorderMode::Band
         },
         // Few rays: each side of the cut gets its own noise.
         rays: 8,

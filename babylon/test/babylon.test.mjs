@@ -13,10 +13,10 @@
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { createServer } from 'node:http';
-import { readFileSync, writeFileSync, existsSync } from 'node:fs';
+import { readFileSync, writeFileSync } from 'node:fs';
 import { basename, extname, join, normalize } from 'node:path';
 import { build } from 'esbuild';
-import { bake, launch, repoDir, sharedAssets, tempDir, tiltedPlane } from '../../viewer/test/harness.mjs';
+import { bake, launch, repoDir, tempDir, testAssets, tiltedPlane } from '../../viewer/test/harness.mjs';
 import {
   anchoredAgreement, bilinear, bspline, coefficientsAt, largestDifference, lightmapOf, projectScalar, readGlb, textureImage,
   writeGlb,
@@ -98,14 +98,10 @@ before(async () => {
   files.plane = bake(tiltedPlane(join(dir, 'plane_in.glb'), {
     material: { pbrMetallicRoughness: { metallicFactor: 0, roughnessFactor: 1 } },
   }), join(dir, 'plane.glb'), ['--resolution', '64', '--rays', '4096']);
-  if (existsSync(join(sharedAssets, 'sponza_dabrovic.glb'))) {
-    files.sponzaPages = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza_pages.glb'),
-      ['--texel-density', '5', '--page-size', '256', '--rays', '16', '--method', 'mc']);
-  }
-  if (existsSync(join(sharedAssets, 'flight_helmet.glb'))) {
-    // Every material of the helmet has a normal map: `auto` bakes the layer.
-    files.helmet = bake(join(sharedAssets, 'flight_helmet.glb'), join(dir, 'helmet.glb'), ['--resolution', '512', '--quality', '32']);
-  }
+  files.courtyardPages = bake(join(testAssets, 'generated/courtyard.glb'), join(dir, 'courtyard_pages.glb'),
+    ['--texel-density', '5', '--page-size', '256', '--rays', '16', '--method', 'mc']);
+  // Every material of the helmet has a normal map: `auto` bakes the layer.
+  files.helmet = bake(join(testAssets, 'flight_helmet.glb'), join(dir, 'helmet.glb'), ['--resolution', '512', '--quality', '32']);
   // The page and Babylon as one module (thousands of ES modules load too slowly).
   await build({
     entryPoints: [join(repoDir, 'babylon/test/page.js')], bundle: true, format: 'esm',
@@ -289,21 +285,13 @@ test('malformed extensions are reported by primitive, and the rest still relight
   await page.close();
 });
 
-test('Sponza on several atlas pages: each primitive reads its own page', async (t) => {
-  if (!files.sponzaPages) {
-    t.skip('shared assets missing');
-    return;
-  }
-  const root = decoded(files.sponzaPages).glb.json.extensions.AOBAKE_lightmap;
+test('the courtyard on several atlas pages: each primitive reads its own page', async () => {
+  const root = decoded(files.courtyardPages).glb.json.extensions.AOBAKE_lightmap;
   assert.ok(root.pages.length >= 3);
-  await relightMatches('sponzaPages', ['white', 'lobe+y']);
+  await relightMatches('courtyardPages', ['white', 'lobe+y']);
 });
 
-test('flight helmet: normal maps drive the baked light as the CPU formula says', async (t) => {
-  if (!files.helmet) {
-    t.skip('shared assets missing');
-    return;
-  }
+test('flight helmet: normal maps drive the baked light as the CPU formula says', async () => {
   const page = await openPage();
   const status = await page.evaluate((u) => window.aobakeBabylon.load(u), `/files/${basename(files.helmet)}`);
   assert.deepEqual(status.problems, []);

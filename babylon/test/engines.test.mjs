@@ -12,10 +12,10 @@
 
 import { after, before, test } from 'node:test';
 import assert from 'node:assert/strict';
-import { existsSync, readFileSync, writeFileSync } from 'node:fs';
+import { readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 import pngjs from '../../viewer/node_modules/pngjs/lib/png.js';
-import { bake, launch, open, repoDir, serve, sharedAssets, tempDir } from '../../viewer/test/harness.mjs';
+import { bake, launch, open, repoDir, serve, tempDir, testAssets } from '../../viewer/test/harness.mjs';
 import { readGlb, writeGlb } from '../../viewer/test/decode.mjs';
 import { check } from '../build-viewer.mjs';
 
@@ -41,9 +41,7 @@ function matteCornell(path) {
 before(async () => {
   files.matte = bake(matteCornell(join(dir, 'matte-in.glb')), join(dir, 'matte.glb'), ['--resolution', '256', '--rays', '64']);
   files.cornell = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell.glb'), ['--resolution', '256', '--rays', '64']);
-  if (existsSync(join(sharedAssets, 'flight_helmet.glb'))) {
-    files.helmet = bake(join(sharedAssets, 'flight_helmet.glb'), join(dir, 'helmet.glb'), ['--resolution', '512', '--quality', '32']);
-  }
+  files.helmet = bake(join(testAssets, 'flight_helmet.glb'), join(dir, 'helmet.glb'), ['--resolution', '512', '--quality', '32']);
   browser = await launch();
 });
 
@@ -203,11 +201,7 @@ test('a Cornell box without specular: the two engines\' relit frames agree withi
   await sameBakeTwoEngines('matte', ['irradiance'], 2);
 });
 
-test('flight helmet: the same normal-mapped baked light in both engines', async (t) => {
-  if (!files.helmet) {
-    t.skip('shared assets missing');
-    return;
-  }
+test('flight helmet: the same normal-mapped baked light in both engines', async () => {
   await sameBakeTwoEngines('helmet', ['irradiance', 'mapped', 'specularOcclusion']);
 });
 

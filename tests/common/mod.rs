@@ -252,32 +252,21 @@ pub fn bake_raw(sc: &aobake::gltf::Scene, mut s: aobake::BakeSettings) -> aobake
     aobake::bake_scene(sc, &s).unwrap()
 }
 
-/// The scene `name` bundled in the repository's `assets/` (every clone has
-/// it: the test never skips).
-pub fn bundled_scene(name: &str) -> aobake::gltf::Scene {
+/// The path of the test scene `name` in the repository's `assets/` (real
+/// scenes with their credits in `assets/CREDITS.md`; `generated/` holds
+/// the scenes `tools/test_scenes.py` writes). Every clone has them: the
+/// tests that read them never skip.
+pub fn asset_path(name: &str) -> std::path::PathBuf {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("assets")
         .join(name);
-    aobake::gltf::load(&path).unwrap()
+    assert!(path.exists(), "{} is missing", path.display());
+    path
 }
 
-/// The scene `name` of the shared test assets (`../shared/assets`), or
-/// None (with a note) where they are not checked out: the test skips.
-pub fn shared_scene(name: &str) -> Option<aobake::gltf::Scene> {
-    shared_path(name).map(|path| aobake::gltf::load(&path).unwrap())
-}
-
-/// The path of the shared test asset `name`, or None (with a note) where
-/// the assets are not checked out: the test skips.
-pub fn shared_path(name: &str) -> Option<std::path::PathBuf> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/assets")
-        .join(name);
-    if !path.exists() {
-        eprintln!("skipped: {} is missing", path.display());
-        return None;
-    }
-    Some(path)
+/// The test scene `name` of the repository's `assets/`, loaded.
+pub fn bundled_scene(name: &str) -> aobake::gltf::Scene {
+    aobake::gltf::load(&asset_path(name)).unwrap()
 }
 
 /// A key of the receivers' order (FNV-1a over their texels), for caches
@@ -291,17 +280,37 @@ pub fn order_key(receivers: &aobake::atlas::Receivers) -> u64 {
         })
 }
 
+/// Whether a test part that needs outside tools (a browser, the glTF
+/// validator, the checker's Python) can run: `missing` lists what is
+/// absent, as what to install. Under CI (`CI` set) or with
+/// `AOBAKE_REQUIRE_TOOLS` set, anything missing fails the test; elsewhere
+/// the test says what is missing and leaves that part out. Test scenes
+/// are never outside tools: they are in `assets/`.
+pub fn tools_present(part: &str, missing: &[&str]) -> bool {
+    if missing.is_empty() {
+        return true;
+    }
+    let required = ["CI", "AOBAKE_REQUIRE_TOOLS", "AOBAKE_REQUIRE_BROWSER"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some());
+    assert!(!required, "{part} needs: {}", missing.join(", "));
+    eprintln!("note: {part} not run, missing: {}", missing.join(", "));
+    false
+}
+
 /// Runs the Khronos validator when node and tools/validator are installed;
 /// returns (errors, warnings).
 pub fn validate(path: &std::path::Path) -> Option<(u64, u64)> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    if !root
+    let installed = root
         .join("tools/validator/node_modules/gltf-validator")
-        .exists()
-    {
-        eprintln!(
-            "note: gltf-validator not installed (npm install --prefix tools/validator), validation skipped"
-        );
+        .exists();
+    let missing: &[&str] = if installed {
+        &[]
+    } else {
+        &["gltf-validator (npm install --prefix tools/validator)"]
+    };
+    if !tools_present("glTF validation", missing) {
         return None;
     }
     let out = std::process::Command::new("node")
@@ -319,7 +328,7 @@ pub fn validate(path: &std::path::Path) -> Option<(u64, u64)> {
 /// Runs `node --test ARGS` in `dir` (a browser test folder) with the
 /// `aobake` binary at `aobake`, after checking what it needs: `needs` lists (missing,
 /// what to install). Without them it says so and passes, except under CI
-/// (`CI` set) or with `AOBAKE_REQUIRE_BROWSER` set, where it fails. Prints
+/// (see `tools_present`), where it fails. Prints
 /// the measured lines (`# \#`) for the log and fails with the TAP output.
 pub fn run_browser_tests(
     dir: &std::path::Path,
@@ -340,14 +349,7 @@ pub fn run_browser_tests(
     .chain(needs.iter().copied())
     .filter_map(|(gone, what)| gone.then_some(what))
     .collect();
-    if !missing.is_empty() {
-        let required = std::env::var_os("CI").is_some()
-            || std::env::var_os("AOBAKE_REQUIRE_BROWSER").is_some();
-        assert!(!required, "browser tests need: {}", missing.join(", "));
-        eprintln!(
-            "note: browser tests skipped, missing: {}",
-            missing.join(", ")
-        );
+    if !tools_present("the browser tests", &missing) {
         return;
     }
     let out = std::process::Command::new("node")

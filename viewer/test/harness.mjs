@@ -18,6 +18,8 @@ export const viewerDir = resolve(dirname(fileURLToPath(import.meta.url)), '..');
 export const repoDir = resolve(viewerDir, '..');
 export const aobake = process.env.AOBAKE_BIN ?? join(repoDir, 'target/release/aobake');
 export const chromiumPath = process.env.CHROMIUM ?? '/usr/bin/chromium';
+// The test scenes in the repository (assets/CREDITS.md): every clone has them.
+export const testAssets = resolve(repoDir, 'assets');
 export const sharedAssets = process.env.AOBAKE_SHARED ?? resolve(repoDir, '../shared/assets');
 
 export function tempDir() {

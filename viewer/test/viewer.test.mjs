@@ -9,7 +9,7 @@ import { after, before, describe, test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { bake, launch, open, pick, repoDir, serve, sharedAssets, tempDir, tiltedPlane } from './harness.mjs';
+import { bake, launch, open, pick, repoDir, serve, tempDir, testAssets, tiltedPlane } from './harness.mjs';
 import {
   anchoredAgreement, basis, bilinear, bspline, coefficientsAt, largestDifference, lightmapOf, projectScalar, readGlb,
   textureImage, writeGlb,
@@ -74,10 +74,10 @@ async function canvasShowsSomething(page) {
 before(async () => {
   files.cornell = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell.glb'),
     ['--resolution', '256', '--rays', '64']);
-  files.sponza = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza.glb'),
+  files.courtyard = bake(join(testAssets, 'generated/courtyard.glb'), join(dir, 'courtyard.glb'),
     ['--resolution', '512', '--rays', '16']);
   // Several atlas pages: each primitive reads its own page's textures.
-  files.sponzaPages = bake(join(sharedAssets, 'sponza_dabrovic.glb'), join(dir, 'sponza_pages.glb'),
+  files.courtyardPages = bake(join(testAssets, 'generated/courtyard.glb'), join(dir, 'courtyard_pages.glb'),
     ['--texel-density', '5', '--page-size', '256', '--rays', '16', '--method', 'mc']);
   // Texels fitted for the bicubic lookup, coarse enough that it matters.
   files.cornellBicubic = bake(join(repoDir, 'assets/cornell_box.glb'), join(dir, 'cornell_bicubic.glb'),
@@ -85,7 +85,7 @@ before(async () => {
   files.plane = bake(tiltedPlane(join(dir, 'plane_in.glb')), join(dir, 'plane.glb'),
     ['--resolution', '64', '--rays', '4096']);
   // Every material of the helmet has a normal map: `auto` bakes the layer.
-  files.helmet = bake(join(sharedAssets, 'flight_helmet.glb'), join(dir, 'helmet.glb'),
+  files.helmet = bake(join(testAssets, 'flight_helmet.glb'), join(dir, 'helmet.glb'),
     ['--resolution', '512', '--quality', '32']);
   server = await serve(files.cornell);
   browser = await launch();
@@ -97,17 +97,17 @@ after(async () => {
 });
 
 describe('uniform white environment: the relit irradiance is the baked AO', () => {
-  for (const name of ['cornell', 'sponza', 'sponzaPages']) {
+  for (const name of ['cornell', 'courtyard', 'courtyardPages']) {
     test(name, async () => {
       const page = await open(browser, server.url);
       const status = await pick(page, files[name]);
       assert.equal(status.problems.length, 0, status.message);
       assert.ok(status.baked > 0);
-      if (name === 'sponzaPages') {
+      if (name === 'courtyardPages') {
         const { glb } = decoded(files[name]);
         const root = glb.json.extensions.AOBAKE_lightmap;
         const pages = new Set(lightmapOf(glb).map((e) => e.occlusion.index));
-        console.log(`# sponzaPages: version ${root.version}, ${root.pages.length} pages, ${pages.size} AO textures read`);
+        console.log(`# courtyardPages: version ${root.version}, ${root.pages.length} pages, ${pages.size} AO textures read`);
         assert.equal(root.version, 2);
         assert.ok(root.pages.length >= 3 && pages.size === root.pages.length, JSON.stringify(root.pages));
       }
