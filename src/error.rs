@@ -8,6 +8,7 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Everything that can stop a bake. Each variant prints as one line.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum Error {
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
@@ -63,6 +64,7 @@ impl Error {
     }
 
     /// A bad `item` of list-valued `setting` (`setting: 'item': why`).
+    #[cfg(feature = "cli")]
     pub(crate) fn option_item(setting: &'static str, item: &str, why: &str) -> Self {
         Error::Option {
             setting,

@@ -4,8 +4,9 @@
 //! [`job`] runs the stages in order: [`gltf`] (load) -> [`atlas`] (unwrap,
 //! rasterize) and [`trace`] (BVH) -> [`bake`] (the methods) ->
 //! [`lightmap`] (dilate, spread, seams) -> [`encode`] -> [`gltf::write`].
-//! [`shard`] is the sharded bake's partial files, [`report`] the `aobake
-//! report` sweep and [`view`] the relighting viewer's server. Beneath them,
+//! [`shard`] is the sharded bake's partial files; with the `cli` feature
+//! (the binary's, on by default), `report` is the `aobake report` sweep and
+//! `view` the relighting viewer's server. Beneath them,
 //! used by the stages and using none: [`geometry`], [`sample`], [`sh`],
 //! [`relight`], [`bits`], [`stage`], [`file`], [`error`].
 //!
@@ -25,12 +26,14 @@ pub mod gltf;
 pub mod job;
 pub mod lightmap;
 pub mod relight;
+#[cfg(feature = "cli")]
 pub mod report;
 pub mod sample;
 pub mod sh;
 pub mod shard;
 pub mod stage;
 pub mod trace;
+#[cfg(feature = "cli")]
 pub mod view;
 
 pub use error::{Error, Result};

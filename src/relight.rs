@@ -1,6 +1,6 @@
 //! Relighting: what an engine does with a bake, on the CPU. The reference
 //! for the README's GLSL and the viewer's shader, and what the tests and
-//! `examples/visibility_error` measure the layer with.
+//! `probes/visibility_error` measure the layer with.
 //!
 //! In: an environment's radiance as L2 SH (9 coefficients per colour
 //! channel, the contract's basis), a texel's c (9) and v (16 or 9), a

@@ -8,8 +8,8 @@
 //! threads) shows a serial stage on any machine: 1/threads where one
 //! thread works, near 1 where all do.
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
+#[cfg(feature = "cli")]
 use std::io::IsTerminal;
 use std::time::Instant;
 
@@ -165,23 +165,80 @@ pub fn seconds_of(stages: &[StageTime], stage: &str) -> f64 {
         .sum()
 }
 
-/// A progress bar on stderr, drawn only if `show` and stderr is a terminal.
-pub fn progress_bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
-    let pb = ProgressBar::with_draw_target(
-        Some(len),
-        if show && std::io::stderr().is_terminal() {
-            ProgressDrawTarget::stderr()
-        } else {
-            ProgressDrawTarget::hidden()
-        },
-    );
-    pb.set_style(
-        ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, {per_sec}, eta {eta}")
-            .expect("template")
-            .progress_chars("=> "),
-    );
-    pb.set_message(msg);
-    pb
+/// A stage's progress: a bar on stderr, drawn only if `show` and stderr is
+/// a terminal, where the library is built with the `cli` feature (the
+/// binary's); without it, nothing is drawn and nothing is linked.
+pub struct Progress {
+    #[cfg(feature = "cli")]
+    bar: indicatif::ProgressBar,
+}
+
+impl Progress {
+    /// `n` more steps done.
+    pub fn inc(&self, n: u64) {
+        #[cfg(feature = "cli")]
+        self.bar.inc(n);
+        #[cfg(not(feature = "cli"))]
+        let _ = n;
+    }
+
+    /// The stage has `len` steps in all (known once it has begun).
+    pub fn set_length(&self, len: u64) {
+        #[cfg(feature = "cli")]
+        self.bar.set_length(len);
+        #[cfg(not(feature = "cli"))]
+        let _ = len;
+    }
+
+    /// `done` steps are done.
+    pub fn set_position(&self, done: u64) {
+        #[cfg(feature = "cli")]
+        self.bar.set_position(done);
+        #[cfg(not(feature = "cli"))]
+        let _ = done;
+    }
+
+    /// What the stage is doing now.
+    pub fn set_message(&self, msg: impl Into<std::borrow::Cow<'static, str>>) {
+        #[cfg(feature = "cli")]
+        self.bar.set_message(msg);
+        #[cfg(not(feature = "cli"))]
+        let _ = msg.into();
+    }
+
+    /// The stage is over: the bar goes.
+    pub fn finish_and_clear(&self) {
+        #[cfg(feature = "cli")]
+        self.bar.finish_and_clear();
+    }
+}
+
+/// The progress of a stage of `len` steps named `msg` (see [`Progress`]).
+pub fn progress_bar(show: bool, len: u64, msg: &'static str) -> Progress {
+    #[cfg(feature = "cli")]
+    {
+        use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+        let bar = ProgressBar::with_draw_target(
+            Some(len),
+            if show && std::io::stderr().is_terminal() {
+                ProgressDrawTarget::stderr()
+            } else {
+                ProgressDrawTarget::hidden()
+            },
+        );
+        bar.set_style(
+            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, {per_sec}, eta {eta}")
+                .expect("template")
+                .progress_chars("=> "),
+        );
+        bar.set_message(msg);
+        Progress { bar }
+    }
+    #[cfg(not(feature = "cli"))]
+    {
+        let _ = (show, len, msg);
+        Progress {}
+    }
 }
 
 #[cfg(test)]

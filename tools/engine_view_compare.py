@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The project's engine view against the independent checker on the same points.
 
-Reads the CSV of `examples/engine_view_points` (the project's points, reference and lookups) and the GLB of the same
+Reads the CSV of `probes/engine_view_points` (the project's points, reference and lookups) and the GLB of the same
 bake, and splits the difference of the two figures into its parts: the checker's lookups of the written textures at
 the same UVs, and the checker's Embree reference at the same points with its own origin offset (1e-4 of the scene's
 diagonal) and with the project's.

@@ -39,8 +39,10 @@ use serde::{Deserialize, Serialize};
 /// `Uniform`, the same texels per world unit everywhere; `Signal`, each
 /// mesh's density scaled by how finely its occlusion varies
 /// ([`mesh_scales`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
+#[non_exhaustive]
 pub enum TexelBudget {
     #[default]
     Uniform,

@@ -39,17 +39,9 @@ pub const EXTENSION: &str = "AOBAKE_lightmap";
 /// What to do with a material that already has an occlusionTexture:
 /// keep it (the bake is still in the extension), or replace it with the
 /// baked AO.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Default,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[non_exhaustive]
 pub enum OcclusionMode {
     #[default]
     Keep,

@@ -65,6 +65,38 @@ use std::path::Path;
 /// and the timer every stage laps on. Every command runs its stages
 /// through these methods, in this order: [`Job::level`], [`Job::pages`],
 /// [`Job::write`], [`Job::report`].
+///
+/// A bake page by page, keeping each page's float lightmap as it goes
+/// (what [`bake`] does, less the file):
+///
+/// ```
+/// use aobake::atlas::AtlasSize;
+/// use aobake::job::Job;
+/// use aobake::stage::StageTimer;
+/// use aobake::{BakeSettings, RunOptions};
+///
+/// let scene = aobake::gltf::load("assets/cornell_box.glb".as_ref())?;
+/// let settings = BakeSettings {
+///     size: AtlasSize::Resolution(48),
+///     ..BakeSettings::default()
+/// };
+/// let mut job = Job::new(&scene, &settings, &RunOptions::QUIET, StageTimer::new());
+/// let level = job.level()?;
+/// let pages: Vec<u32> = (0..level.page_count()).collect();
+/// let mut mean_ao = Vec::new();
+/// let done = job.pages(&level, &pages, &mut |_page, _passes, out| {
+///     let ao = &out.lightmap.ao;
+///     mean_ao.push(ao.iter().sum::<f32>() / ao.len() as f32);
+/// })?;
+/// let encoded: Vec<_> = done.iter().map(|d| &d.encoded).collect();
+/// let (glb, warnings) = job.write(&level, &encoded, None)?;
+/// let report = job.report(&level, &done, warnings, None);
+/// // A closed box: every texel sees some of its walls, none all of them.
+/// assert!(mean_ao.iter().all(|&m| m > 0.1 && m < 1.0));
+/// assert_eq!(&glb[..4], b"glTF");
+/// assert_eq!(report.pages.len(), pages.len());
+/// # Ok::<(), aobake::Error>(())
+/// ```
 pub struct Job<'a> {
     pub scene: &'a Scene,
     pub settings: &'a BakeSettings,
@@ -206,7 +238,30 @@ pub struct Baked {
 }
 
 /// Bakes `input` into `output` (written atomically; `input` is never
-/// touched): every page, in one process.
+/// touched): every page, in one process. What `aobake IN OUT` runs.
+///
+/// ```
+/// use aobake::atlas::AtlasSize;
+/// use aobake::{BakeSettings, RunOptions};
+///
+/// let dir = tempfile::tempdir().unwrap();
+/// let out = dir.path().join("cornell_baked.glb");
+/// let settings = BakeSettings {
+///     size: AtlasSize::Resolution(64),
+///     ..BakeSettings::default()
+/// };
+/// let report = aobake::bake(
+///     "assets/cornell_box.glb".as_ref(),
+///     &out,
+///     &settings,
+///     &RunOptions::QUIET,
+/// )?;
+/// assert!(report.texels > 0);
+/// // The output is a glTF that carries the extension.
+/// let written = std::fs::read(&out).unwrap();
+/// assert!(written.windows(15).any(|w| w == b"AOBAKE_lightmap"));
+/// # Ok::<(), aobake::Error>(())
+/// ```
 pub fn bake(input: &Path, output: &Path, s: &BakeSettings, run: &RunOptions) -> Result<Report> {
     s.validate()?;
     check_output(input, output)?;
@@ -239,7 +294,26 @@ pub fn check_output(input: &Path, output: &Path) -> Result<()> {
 }
 
 /// Loads `input` and bakes it quietly (the output's URIs stay relative to
-/// the input's directory).
+/// the input's directory): the output's bytes and page 0's intermediates,
+/// nothing written.
+///
+/// ```
+/// use aobake::atlas::AtlasSize;
+/// use aobake::BakeSettings;
+///
+/// let settings = BakeSettings {
+///     size: AtlasSize::Resolution(32),
+///     rays: 64,
+///     method: aobake::Method::Mc,
+///     ..BakeSettings::default()
+/// };
+/// let baked = aobake::bake_file("assets/cornell_box.glb".as_ref(), &settings)?;
+/// // One AO value and nine SH coefficients per texel of the page.
+/// let texels = (baked.lightmap.width * baked.lightmap.height) as usize;
+/// assert_eq!(baked.lightmap.ao.len(), texels);
+/// assert!(baked.lightmap.ao.iter().all(|a| (0.0..=1.0).contains(a)));
+/// # Ok::<(), aobake::Error>(())
+/// ```
 pub fn bake_file(input: &Path, s: &BakeSettings) -> Result<Baked> {
     let mut timer = StageTimer::new();
     let scene = gltf::load(input)?;
@@ -248,6 +322,21 @@ pub fn bake_file(input: &Path, s: &BakeSettings) -> Result<Baked> {
 }
 
 /// Bakes a loaded scene quietly into lightmaps and the output GLB bytes.
+///
+/// ```
+/// use aobake::atlas::AtlasSize;
+/// use aobake::BakeSettings;
+///
+/// let scene = aobake::gltf::load("assets/cornell_box.glb".as_ref())?;
+/// let settings = BakeSettings {
+///     size: AtlasSize::Resolution(32),
+///     ..BakeSettings::default()
+/// };
+/// let baked = aobake::bake_scene(&scene, &settings)?;
+/// assert_eq!(baked.report.baked_primitives, 6);
+/// assert!(baked.glb.len() > 1000);
+/// # Ok::<(), aobake::Error>(())
+/// ```
 pub fn bake_scene(scene: &Scene, s: &BakeSettings) -> Result<Baked> {
     bake_loaded(scene, s, StageTimer::new(), None)
 }

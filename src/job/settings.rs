@@ -22,7 +22,6 @@ use crate::error::{Error, Result};
 use crate::gltf::write::OcclusionMode;
 use crate::lightmap::seams::SeamMode;
 use crate::lightmap::{BorderMode, Filter};
-use clap::{Arg, ArgAction, ArgMatches, Args, Command, FromArgMatches, ValueEnum};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -62,10 +61,12 @@ pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
 /// the sheared filter of Egan et al. 2011, [`crate::bake::sheared`]; named
 /// `filtered` before the adaptive method, which the command line still
 /// accepts).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
+#[non_exhaustive]
 pub enum Method {
-    #[value(alias = "filtered")]
+    #[cfg_attr(feature = "cli", value(alias = "filtered"))]
     Sheared,
     Mc,
     Adaptive,
@@ -86,8 +87,10 @@ impl Method {
 /// (`gltf::Scene::material_reads_visibility`: a normal map, a roughness
 /// below [`crate::gltf::scene::GLOSSY_ROUGHNESS`] or a clearcoat; a scene
 /// with none bakes no layer), `All` baked primitives, or `Off`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
+#[non_exhaustive]
 pub enum VisibilityMode {
     #[default]
     Auto,
@@ -97,6 +100,7 @@ pub enum VisibilityMode {
 
 /// Where the lightmap UVs come from (`--uv`, `--uv-set`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[non_exhaustive]
 pub enum UvSource {
     /// Unwrap every baked placement into a new atlas (new TEXCOORD_n).
     #[default]
@@ -108,80 +112,81 @@ pub enum UvSource {
 /// What a bake is: every setting that decides the output's bytes. Two
 /// bakes of one input with equal `BakeSettings` write the same file (a
 /// shard's fingerprint is this struct's JSON).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Args)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct BakeSettings {
-    #[command(flatten)]
+    #[cfg_attr(feature = "cli", command(flatten))]
     pub size: AtlasSize,
     /// Empty texels around each chart
-    #[arg(long, value_name = "P", default_value_t = Self::DEFAULT.padding)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "P", default_value_t = Self::DEFAULT.padding))]
     pub padding: u32,
     /// Smallest chart width in texels: a generated chart narrower than this
     /// across its bounding rectangle is stretched to it (a strip that bends
     /// is first cut into straight pieces), so that bilinear lookups on it
     /// read texels of its own (0: charts keep their shape)
-    #[arg(long, value_name = "W", default_value_t = Self::DEFAULT.min_chart_width)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "W", default_value_t = Self::DEFAULT.min_chart_width))]
     #[serde(default)]
     pub min_chart_width: f32,
     /// Chart packing
-    #[arg(long, value_enum, default_value_t = Self::DEFAULT.packing)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.packing))]
     pub packing: Packing,
-    #[command(flatten)]
+    #[cfg_attr(feature = "cli", command(flatten))]
     pub uv: UvSource,
     /// Baking method: adaptive (ray counts per texel from the occluders'
     /// depth, an axis-aligned filter of the integrated values), mc
     /// (brute-force Monte Carlo) or sheared (also `filtered`: the sheared
     /// filter of Egan et al. 2011)
-    #[arg(long, value_enum, default_value_t = Self::DEFAULT.method)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.method))]
     pub method: Method,
     /// Monte Carlo (mc): rays per texel
-    #[arg(long, value_name = "N", default_value_t = Self::DEFAULT.rays)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N", default_value_t = Self::DEFAULT.rays))]
     pub rays: u32,
     /// Options of the sheared method.
-    #[command(flatten)]
+    #[cfg_attr(feature = "cli", command(flatten))]
     pub sheared: ShearedOptions,
     /// Options of the adaptive method.
-    #[command(flatten)]
+    #[cfg_attr(feature = "cli", command(flatten))]
     pub adaptive: AdaptiveOptions,
     /// Occluders farther than this (world units) do not count [default: 0.1
     /// x the scene's bounding-box diagonal]
-    #[arg(long, value_name = "D")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "D"))]
     pub max_distance: Option<f64>,
     /// Random seed: the same seed gives the same output on any thread count
-    #[arg(long, value_name = "S", default_value_t = Self::DEFAULT.seed)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "S", default_value_t = Self::DEFAULT.seed))]
     pub seed: u64,
     /// A material's existing occlusionTexture is kept or replaced by the
     /// baked AO
-    #[arg(long, value_enum, default_value_t = Self::DEFAULT.occlusion)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.occlusion))]
     pub occlusion: OcclusionMode,
     /// Bake texels inside or behind single-sided geometry as they are
     /// instead of filling them from their nearest valid texel
-    #[arg(long = "no-inside-fill", action = ArgAction::SetFalse)]
+    #[cfg_attr(feature = "cli", arg(long = "no-inside-fill", action = clap::ArgAction::SetFalse))]
     pub fill_inside: bool,
     /// The visibility layer (SH of the visibility itself), for normal maps
     /// and glossy lobes: auto bakes it for primitives whose material has a
     /// normalTexture, a roughnessFactor below 0.4 or a clearcoat
-    #[arg(long, value_enum, default_value_t = Self::DEFAULT.visibility)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.visibility))]
     pub visibility: VisibilityMode,
     /// SH order of the visibility layer: 3 (16 coefficients) or 2 (9)
-    #[arg(long, value_name = "2|3", default_value_t = Self::DEFAULT.visibility_order)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "2|3", default_value_t = Self::DEFAULT.visibility_order))]
     pub visibility_order: u32,
     /// Smooth seams (vertex normals within 10 degrees, faces within 20
     /// degrees): stitched by least squares, or left as baked
-    #[arg(long, value_enum, default_value_t = Self::DEFAULT.seams)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.seams))]
     pub seams: SeamMode,
     /// Texels fitted by least squares so that bilinear lookups at the
     /// chart's surface points match values traced there: fit, the border
     /// band (texels next to a chart's edge, and its gutter) and the cells
     /// inside charts the signal steps across; band, the border band alone;
     /// off, none (border texels hold their edge receivers' values)
-    #[arg(long, value_enum, default_value_t = Self::DEFAULT.border)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.border))]
     #[serde(default)]
     pub border: BorderMode,
     /// The lookup the texels are fitted for and the file records: bilinear
     /// (what a GPU's texture unit does), or bicubic (the cubic B-spline of
     /// Godot's, Bevy's and Unity's bicubic lightmap sampling), whose texels
     /// are fitted by least squares over the whole chart
-    #[arg(long, value_enum, default_value_t = Self::DEFAULT.filter)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.filter))]
     #[serde(default, skip_serializing_if = "Filter::is_bilinear")]
     pub filter: Filter,
     /// How one page's texels are shared: uniform (the same texels per
@@ -189,7 +194,7 @@ pub struct BakeSettings {
     /// triangle finds how close each mesh's occluders are, and meshes
     /// whose occlusion varies finely get up to 2x the density, open ones
     /// down to half)
-    #[arg(long, value_enum, default_value_t = Self::DEFAULT.texel_budget)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.texel_budget))]
     #[serde(default, skip_serializing_if = "TexelBudget::is_uniform")]
     pub texel_budget: TexelBudget,
 }
@@ -232,28 +237,32 @@ impl Default for BakeSettings {
 }
 
 /// How this run of a bake goes: nothing here changes an output byte.
-#[derive(Clone, Debug, PartialEq, Args)]
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct RunOptions {
     /// No progress bars and no warnings
-    #[arg(short = 'q', long = "quiet", action = ArgAction::SetFalse)]
+    #[cfg_attr(feature = "cli", arg(short = 'q', long = "quiet", action = clap::ArgAction::SetFalse))]
     pub progress: bool,
     /// Write diagnostic PNG maps here: seams_before/after (AO jump at
     /// seams); adaptive: z_min, rays_per_texel, filter_sigma; sheared:
     /// brute_force_fraction, z_min, neighbours, sparse_ao (page k's in
     /// DIR/page-k)
-    #[arg(long, value_name = "DIR")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "DIR"))]
     pub debug_dir: Option<PathBuf>,
     /// Also write DIR/lightmap.exr (float ao, sh0..sh8, v0..v15; page k's in
     /// DIR/page-k)
-    #[arg(long = "exr", value_name = "DIR")]
+    #[cfg_attr(feature = "cli", arg(long = "exr", value_name = "DIR"))]
     pub exr_dir: Option<PathBuf>,
     /// Measure the engine-view error into --report: bilinear lookups of the
     /// written 8-bit textures at N surface points (spread over the pages by
     /// area) against a Monte Carlo reference there, by texel class (0: off)
-    #[arg(long, value_name = "N", default_value_t = 0, hide_default_value = true)]
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "N", default_value_t = 0, hide_default_value = true)
+    )]
     pub engine_view_points: usize,
     /// Rays per point of the engine-view reference
-    #[arg(long, value_name = "N", default_value_t = 512)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N", default_value_t = 512))]
     pub engine_view_rays: u32,
 }
 
@@ -334,102 +343,8 @@ impl BakeSettings {
     }
 }
 
-// The atlas size and the UV source are enums whose variants carry values,
-// so their flags are written out here rather than derived: `--resolution`
-// or `--texel-density` with `--page-size`; `--uv` with `--uv-set`.
-
-fn matched<T: Clone + Send + Sync + 'static>(m: &ArgMatches, id: &str) -> Option<T> {
-    m.try_get_one::<T>(id).ok().flatten().cloned()
-}
-
-impl Args for AtlasSize {
-    fn augment_args(cmd: Command) -> Command {
-        cmd.arg(
-            Arg::new("resolution")
-                .long("resolution")
-                .value_name("N")
-                .value_parser(clap::value_parser!(u32))
-                .default_value(DEFAULT_RESOLUTION.to_string())
-                .conflicts_with("texel_density")
-                .help("Atlas page edge in texels, the densest fit on one page"),
-        )
-        .arg(
-            Arg::new("texel_density")
-                .long("texel-density")
-                .value_name("T")
-                .value_parser(clap::value_parser!(f64))
-                .help("Texels per world unit instead, on as many pages as the charts need"),
-        )
-        .arg(
-            Arg::new("page_size")
-                .long("page-size")
-                .value_name("E")
-                .value_parser(clap::value_parser!(u32))
-                .default_value(DEFAULT_PAGE_SIZE.to_string())
-                .help("With --texel-density: the largest page edge in texels (the last page may be smaller)"),
-        )
-    }
-
-    fn augment_args_for_update(cmd: Command) -> Command {
-        Self::augment_args(cmd)
-    }
-}
-
-impl FromArgMatches for AtlasSize {
-    fn from_arg_matches(m: &ArgMatches) -> std::result::Result<Self, clap::Error> {
-        Ok(match matched::<f64>(m, "texel_density") {
-            Some(density) => AtlasSize::TexelDensity {
-                density,
-                page_size: matched(m, "page_size").unwrap_or(DEFAULT_PAGE_SIZE),
-            },
-            None => AtlasSize::Resolution(matched(m, "resolution").unwrap_or(DEFAULT_RESOLUTION)),
-        })
-    }
-
-    fn update_from_arg_matches(&mut self, m: &ArgMatches) -> std::result::Result<(), clap::Error> {
-        *self = Self::from_arg_matches(m)?;
-        Ok(())
-    }
-}
-
-impl Args for UvSource {
-    fn augment_args(cmd: Command) -> Command {
-        cmd.arg(
-            Arg::new("uv")
-                .long("uv")
-                .value_name("SOURCE")
-                .value_parser(["generate", "existing"])
-                .default_value("generate")
-                .help("Lightmap UVs: generate a new atlas (a new TEXCOORD_n), or reuse the set --uv-set"),
-        )
-        .arg(
-            Arg::new("uv_set")
-                .long("uv-set")
-                .value_name("N")
-                .value_parser(clap::value_parser!(usize))
-                .default_value("1")
-                .help("The TEXCOORD set that --uv existing reuses"),
-        )
-    }
-
-    fn augment_args_for_update(cmd: Command) -> Command {
-        Self::augment_args(cmd)
-    }
-}
-
-impl FromArgMatches for UvSource {
-    fn from_arg_matches(m: &ArgMatches) -> std::result::Result<Self, clap::Error> {
-        Ok(match matched::<String>(m, "uv").as_deref() {
-            Some("existing") => UvSource::Existing(matched(m, "uv_set").unwrap_or(1)),
-            _ => UvSource::Generate,
-        })
-    }
-
-    fn update_from_arg_matches(&mut self, m: &ArgMatches) -> std::result::Result<(), clap::Error> {
-        *self = Self::from_arg_matches(m)?;
-        Ok(())
-    }
-}
+#[cfg(feature = "cli")]
+mod flags;
 
 /// Memory estimate of baking a `width` x `height` atlas with settings `s`
 /// (every texel counted as covered: the worst case): the larger of the bake
@@ -500,57 +415,5 @@ mod tests {
                 .max(BYTES_PER_TEXEL + AdaptiveOptions::KEPT_BYTES_PER_TEXEL)
         );
         assert!(per_texel(&adaptive) < BYTES_PER_TEXEL + working);
-    }
-
-    #[test]
-    fn the_flags_parse_into_the_library_settings() {
-        #[derive(clap::Parser)]
-        struct Cli {
-            #[command(flatten)]
-            s: BakeSettings,
-            #[command(flatten)]
-            run: RunOptions,
-        }
-        use clap::Parser;
-        let parse = |args: &[&str]| {
-            Cli::try_parse_from(std::iter::once("aobake").chain(args.iter().copied()))
-        };
-        let none = parse(&[]).unwrap();
-        assert_eq!(none.s, BakeSettings::DEFAULT);
-        assert_eq!(none.run, RunOptions::default());
-        let some = parse(&[
-            "--texel-density",
-            "28",
-            "--page-size",
-            "1024",
-            "--uv",
-            "existing",
-            "--uv-set",
-            "2",
-            "--method",
-            "filtered",
-            "--no-inside-fill",
-            "--omega-v",
-            "3",
-            "--mean-rays",
-            "64",
-            "-q",
-        ])
-        .unwrap();
-        assert_eq!(
-            some.s.size,
-            AtlasSize::TexelDensity {
-                density: 28.0,
-                page_size: 1024
-            }
-        );
-        assert_eq!(some.s.uv, UvSource::Existing(2));
-        assert_eq!(some.s.method, Method::Sheared);
-        assert!(!some.s.fill_inside);
-        assert_eq!(some.s.sheared.omega_v_max, 3.0);
-        assert_eq!(some.s.adaptive.mean_rays, 64);
-        assert_eq!(some.s.adaptive.pre_rays, AdaptiveOptions::DEFAULT.pre_rays);
-        assert!(!some.run.progress);
-        assert!(parse(&["--resolution", "64", "--texel-density", "3"]).is_err());
     }
 }

@@ -79,8 +79,10 @@ pub const STEP: f32 = 0.1;
 /// step cells inside charts ([`step_texels`]); `Band`, the border band
 /// alone; `Off`, none (border texels keep their edge receivers' values).
 /// The fit's [`anchors`] are solved with the seams.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
+#[non_exhaustive]
 pub enum BorderMode {
     #[default]
     Fit,

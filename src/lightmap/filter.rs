@@ -22,8 +22,10 @@ use serde::{Deserialize, Serialize};
 
 /// The lookup the texels are fitted for, recorded in the file
 /// (`filter` of the root's `AOBAKE_lightmap`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
+#[non_exhaustive]
 pub enum Filter {
     #[default]
     Bilinear,

@@ -28,6 +28,7 @@ pub struct ViewSite {
 
 /// A file a request names.
 #[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum Served {
     /// On disk (the model, or a file under the viewer directory).
     File(PathBuf),

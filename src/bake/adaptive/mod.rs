@@ -210,7 +210,7 @@ pub fn bake(
 /// (cosine-weighted) rays: half as many, never fewer than the pre-pass's
 /// count. The allocation already sends more rays where the visibility
 /// varies more, and a filtered receiver's share is averaged like its SH.
-/// Measured on Sponza 1024 (`examples/visibility_error`, 2000 texels, 4096
+/// Measured on Sponza 1024 (`probes/visibility_error`, 2000 texels, 4096
 /// reference rays; layer error mean / p95 at 30 and 60 degrees, time with
 /// the layer over without): the same count 0.0090 / 0.0257, 0.0109 /
 /// 0.0314 at 1.74x; half everywhere 0.0093 / 0.0271, 0.0115 / 0.0342 at

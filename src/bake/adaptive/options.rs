@@ -8,31 +8,32 @@ use crate::error::{Error, Result};
 
 /// Options of the adaptive method. Each flag's doc comment is its
 /// `--help` line; the expert constants have no flag.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, clap::Args)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct AdaptiveOptions {
     /// Closest-hit rays per receiver in the pre-pass (a power of two).
-    #[arg(skip = Self::DEFAULT.pre_rays)]
+    #[cfg_attr(feature = "cli", arg(skip = Self::DEFAULT.pre_rays))]
     pub pre_rays: u32,
     /// Adaptive: the bake's error is that of QUALITY-ray Monte Carlo (its
     /// predicted AO RMSE over the atlas)
-    #[arg(long, value_name = "Q", default_value_t = Self::DEFAULT.quality)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "Q", default_value_t = Self::DEFAULT.quality))]
     pub quality: u32,
     /// Adaptive, expert: a fixed mean rays per texel instead of --quality
     /// (0: from --quality)
-    #[arg(long, value_name = "N", default_value_t = Self::DEFAULT.mean_rays, hide_default_value = true)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "N", default_value_t = Self::DEFAULT.mean_rays, hide_default_value = true))]
     pub mean_rays: u32,
     /// Most rays one receiver gets (a power of two).
-    #[arg(skip = Self::DEFAULT.max_rays)]
+    #[cfg_attr(feature = "cli", arg(skip = Self::DEFAULT.max_rays))]
     pub max_rays: u32,
     /// Expert: the spatial bandlimit constant Omega_h (sigma = z_min / (2
     /// mu Omega_h)).
-    #[arg(skip = Self::DEFAULT.omega_h)]
+    #[cfg_attr(feature = "cli", arg(skip = Self::DEFAULT.omega_h))]
     pub omega_h: f32,
     /// Expert: mu, how far inside the bandlimit the filter stays.
-    #[arg(skip = Self::DEFAULT.mu)]
+    #[cfg_attr(feature = "cli", arg(skip = Self::DEFAULT.mu))]
     pub mu: f32,
     /// Widest filter reach in texels (2 sigma).
-    #[arg(skip = Self::DEFAULT.max_reach)]
+    #[cfg_attr(feature = "cli", arg(skip = Self::DEFAULT.max_reach))]
     pub max_reach: u32,
 }
 

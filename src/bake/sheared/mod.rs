@@ -1,4 +1,4 @@
-//! The sheared filter (`--method filtered`): Egan, Durand, Ramamoorthi
+//! The sheared filter (`--method sheared`; `filtered` is an alias): Egan, Durand, Ramamoorthi
 //! 2011 ("Practical filtering for efficient ray-traced directional
 //! occlusion") on lightmap texels.
 //!

@@ -18,24 +18,25 @@ pub(super) const SPARSE_STREAM: u64 = 1;
 /// [`BakeParams`]. Each field's doc comment is its `--help` line; the
 /// measurements behind the defaults are in the comments above
 /// [`ShearedOptions::DEFAULT`] and in `docs/method-sheared.md`.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, clap::Args)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct ShearedOptions {
     /// Sheared: sparse rays per texel, shared with the neighbours
-    #[arg(long, value_name = "K", default_value_t = Self::DEFAULT.sparse_rays)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "K", default_value_t = Self::DEFAULT.sparse_rays))]
     pub sparse_rays: u32,
     /// Sheared: neighbour gather radius in texel footprints
-    #[arg(long, value_name = "R", default_value_t = Self::DEFAULT.gather_radius)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "R", default_value_t = Self::DEFAULT.gather_radius))]
     pub gather_radius: f32,
     /// Sheared: angular bandlimit Omega_v^max (larger: sharper, more brute
     /// force)
-    #[arg(long = "omega-v", value_name = "W", default_value_t = Self::DEFAULT.omega_v_max)]
+    #[cfg_attr(feature = "cli", arg(long = "omega-v", value_name = "W", default_value_t = Self::DEFAULT.omega_v_max))]
     pub omega_v_max: f32,
     /// Sheared: hemisphere cells with less filter weight (about that many
     /// samples) are brute-forced
-    #[arg(long, value_name = "W", default_value_t = Self::DEFAULT.min_weight)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "W", default_value_t = Self::DEFAULT.min_weight))]
     pub min_weight: f32,
     /// Sheared: brute-force rays per hemisphere cell the filter cannot serve
-    #[arg(long, value_name = "C", default_value_t = Self::DEFAULT.cell_rays)]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "C", default_value_t = Self::DEFAULT.cell_rays))]
     pub cell_rays: u32,
 }
 

@@ -35,8 +35,10 @@ use serde::{Deserialize, Serialize};
 /// What happens at smooth seams (`--seams`): `Stitch`, least-squares
 /// stitching of both sides ([`stitch_page`]), or `Off`, each side keeping
 /// its own baked and dilated texels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
+#[non_exhaustive]
 pub enum SeamMode {
     #[default]
     Stitch,
@@ -55,7 +57,7 @@ pub const SMOOTH_DEGREES: f32 = 10.0;
 /// reference itself jumps there. Sponza 1024, a 512-ray reference at the
 /// two sides' receivers on one point of the edge: mean |AO jump| 0.008
 /// with faces within 1 degree, 0.011 within 10, 0.034 at 10-45 and 0.170
-/// beyond 45 (`examples/seam_sides`); 81% of the seams with smooth vertex
+/// beyond 45 (`probes/seam_sides`); 81% of the seams with smooth vertex
 /// normals have faces more than 20 degrees apart. Stitching those moved
 /// both sides off the reference: engine-view AO RMSE over all points
 /// 0.0246 stitching every smooth-normal seam, 0.0193 with faces within 10,
