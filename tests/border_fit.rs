@@ -247,7 +247,7 @@ fn a_smooth_function_is_reproduced_near_the_borders() {
         // 99th percentile, at the rectangle's corners and on its very
         // edges) read gutter texels that hold dilated copies (no point
         // constrains them much, and an extrapolation prior measured worse
-        // on real scenes: docs/engine-view.md), within 2.5 steps.
+        // on real scenes: docs/measurements/engine-view-levers.md), within 2.5 steps.
         assert!(
             rms < 0.5 / 255.0 && max < 2.5 / 255.0 && rms < 0.7 * rms0,
             "stitch {stitch}: {rms} {max} (before {rms0} {max0})"
@@ -398,7 +398,7 @@ fn a_wedge_thinner_than_a_texel_is_fitted_where_no_tap_is_its_own() {
     // The fit brings the sliver's lookups towards f, with the grid alone
     // and with the dense points (on this smooth wedge they neither help
     // nor hurt much: 0.0115 against 0.0101; on Sponza's strips, whose
-    // triangles are thinner than the grid, they do: docs/engine-view.md).
+    // triangles are thinner than the grid, they do: docs/measurements/engine-view-levers.md).
     assert!(
         grid_only < 0.8 * before,
         "grid {grid_only}, before {before}"

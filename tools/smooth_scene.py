@@ -5,7 +5,7 @@ torus resting on a floor (positions and normals only; aobake unwraps it).
     python3 tools/smooth_scene.py OUT.glb
 
 Issue 38's check that scenes with large smooth charts lose nothing to the
-border fit (docs/engine-view.md). No dependencies beyond the standard library.
+border fit (docs/measurements/engine-view-levers.md). No dependencies beyond the standard library.
 """
 import json
 import math

@@ -72,7 +72,7 @@ pub const FIT_WEIGHT: f32 = 0.5;
 /// misplaces a step by up to half a texel, so the error it leaves grows
 /// with the step's height; a smooth gradient spans a few hundredths per
 /// texel at most. Half of it doubles the cells, and the fit's noise where
-/// nothing steps takes back what the added cells gain (`docs/engine-view.md`).
+/// nothing steps takes back what the added cells gain (`docs/measurements/engine-view-levers.md`).
 pub const STEP: f32 = 0.1;
 
 /// Which texels are fitted (`--border`): `Fit`, the border band and the
