@@ -88,13 +88,13 @@ pub fn from_byte(q: u8, scale: f32, offset: f32) -> f32 {
 }
 
 /// One of the encoded PNGs, decoded.
-pub fn read_png(png: &[u8]) -> Result<image::DynamicImage> {
+pub(crate) fn read_png(png: &[u8]) -> Result<image::DynamicImage> {
     image::load_from_memory_with_format(png, image::ImageFormat::Png)
         .map_err(|err| Error::Encode(format!("an encoded PNG does not decode: {err}")))
 }
 
 /// Scale and offset mapping each coefficient's range onto [0, 1].
-pub fn sh_range<const N: usize>(sh: &[[f32; N]]) -> ([f32; N], [f32; N]) {
+pub(crate) fn sh_range<const N: usize>(sh: &[[f32; N]]) -> ([f32; N], [f32; N]) {
     let mut lo = [f32::INFINITY; N];
     let mut hi = [f32::NEG_INFINITY; N];
     for c in sh {
@@ -249,7 +249,7 @@ pub fn decode(e: &Encoded) -> Result<Lightmap> {
 }
 
 /// Writes `ao` and `sh0`..`sh8` as 32-bit float channels of one EXR layer.
-pub fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
+pub(crate) fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
     use exr::prelude::*;
     let mut chans: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     chans.push(AnyChannel::new("ao", FlatSamples::F32(lm.ao.clone())));
@@ -283,7 +283,11 @@ pub fn write_exr(lm: &Lightmap, path: &Path) -> Result<()> {
 /// ([`grey_map`]: values in [0, 1], white = 1, gutters black). Each method
 /// says what its maps show (for the filtered method,
 /// [`crate::bake::sheared::ShearedStats::debug_maps`]).
-pub fn write_grey_maps(dir: &Path, receivers: &Receivers, maps: &[(&str, Vec<f32>)]) -> Result<()> {
+pub(crate) fn write_grey_maps(
+    dir: &Path,
+    receivers: &Receivers,
+    maps: &[(&str, Vec<f32>)],
+) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     for (name, values) in maps {
         let bytes = grey_map(receivers, |r| values[r])?;

@@ -12,7 +12,7 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_PI_4, PI};
 
 /// Cells per side of the square domain (the paper uses 8x8).
-pub const CELLS_PER_SIDE: usize = 8;
+pub(crate) const CELLS_PER_SIDE: usize = 8;
 /// Number of hemisphere cells.
 pub const CELL_COUNT: usize = CELLS_PER_SIDE * CELLS_PER_SIDE;
 
@@ -33,7 +33,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
 
 /// Inverse of [`concentric_disk`]: a disk point back to `[0,1]^2`.
 #[inline]
-pub fn concentric_disk_inverse(p: Vec2) -> Vec2 {
+pub(crate) fn concentric_disk_inverse(p: Vec2) -> Vec2 {
     let r = p.length();
     if r == 0.0 {
         return Vec2::splat(0.5);
@@ -89,7 +89,7 @@ fn atan_unit(z: f32) -> f32 {
 /// Differs from [`cell_of`] only for directions within ~1e-5 of a cell
 /// boundary.
 #[inline]
-pub fn cell_of_fast(d: Vec3) -> usize {
+pub(crate) fn cell_of_fast(d: Vec3) -> usize {
     let (x, y) = (d.x, d.y);
     let r = (x * x + y * y).sqrt();
     let (ox, oy) = if r == 0.0 {

@@ -56,7 +56,7 @@ pub fn basis(w: Vec3) -> [f32; SH_COUNT] {
 pub const VIS_COUNT: usize = 16;
 
 /// Band l of coefficient i of the visibility layer.
-pub const VIS_BAND: [usize; VIS_COUNT] = [0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3];
+pub(crate) const VIS_BAND: [usize; VIS_COUNT] = [0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3];
 
 /// The l = 3 normalisations, in the contract's order i = 9..15 (m = -3..3,
 /// no Condon-Shortley phase): sqrt(35/(32 pi)), sqrt(105/(4 pi)),
@@ -99,7 +99,7 @@ pub fn basis16(w: Vec3) -> [f32; VIS_COUNT] {
 
 /// Hemisphere band factors lambda_l = 2 pi Int_0^1 P_l(t) dt (Funk-Hecke
 /// for the hemisphere's indicator H(n.w)): 2 pi, pi, 0, -pi/4.
-pub const HEMISPHERE_BAND: [f32; 4] = [
+pub(crate) const HEMISPHERE_BAND: [f32; 4] = [
     2.0 * std::f32::consts::PI,
     std::f32::consts::PI,
     0.0,
@@ -188,7 +188,7 @@ pub fn below_plane_visibility(n: Vec3, geo: Vec3) -> [f32; VIS_COUNT] {
 
 /// Adds `weight * Y_i(w)` to each coefficient of `acc`.
 #[inline]
-pub fn accumulate(acc: &mut [f32; SH_COUNT], weight: f32, w: Vec3) {
+pub(crate) fn accumulate(acc: &mut [f32; SH_COUNT], weight: f32, w: Vec3) {
     for (a, y) in acc.iter_mut().zip(basis(w)) {
         *a += weight * y;
     }

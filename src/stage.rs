@@ -48,7 +48,7 @@ impl StageTime {
 
 /// CPU time of the whole process so far, every thread's (seconds; 0 where
 /// the platform has no such clock).
-pub fn process_cpu_seconds() -> f64 {
+pub(crate) fn process_cpu_seconds() -> f64 {
     #[cfg(unix)]
     {
         let mut ts = libc::timespec {
@@ -214,7 +214,7 @@ impl Progress {
 }
 
 /// The progress of a stage of `len` steps named `msg` (see [`Progress`]).
-pub fn progress_bar(show: bool, len: u64, msg: &'static str) -> Progress {
+pub(crate) fn progress_bar(show: bool, len: u64, msg: &'static str) -> Progress {
     #[cfg(feature = "cli")]
     {
         use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};

@@ -12,7 +12,7 @@
 //!   passes' caches.
 
 pub mod order;
-pub mod pages;
+pub(crate) mod pages;
 pub mod rasterize;
 pub mod unwrap;
 

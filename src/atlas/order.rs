@@ -61,7 +61,7 @@ pub fn world_order(positions: &[Vec3]) -> Vec<u32> {
 }
 
 /// `receivers` in [`world_order`] of their positions.
-pub fn in_world_order(receivers: Receivers) -> Receivers {
+pub(crate) fn in_world_order(receivers: Receivers) -> Receivers {
     let order = world_order(&receivers.position);
     receivers.permuted(&order)
 }

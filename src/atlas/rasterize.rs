@@ -375,7 +375,12 @@ fn rasterize_band(tris: &[SurfaceTri], list: &[u32], band: u32, w: u32, h: u32) 
 
 /// The UV (texel units) of the receiver [`rasterize`] gives each texel
 /// that `needed` marks: the covered point nearest its centre.
-pub fn receiver_uvs(tris: &[SurfaceTri], w: u32, h: u32, needed: &[bool]) -> Vec<Option<Vec2>> {
+pub(crate) fn receiver_uvs(
+    tris: &[SurfaceTri],
+    w: u32,
+    h: u32,
+    needed: &[bool],
+) -> Vec<Option<Vec2>> {
     let reach2 = CONSERVATIVE_REACH * CONSERVATIVE_REACH;
     // Every triangle's candidates (texel, distance^2, triangle, point), in
     // parallel; then per texel the nearest, the first triangle on a tie:

@@ -196,7 +196,7 @@ pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -
 /// and returning a chart that fits no page as its own outcome (the
 /// pipeline names its glTF object). `scales`: per mesh, a factor on its
 /// texel density (`--texel-budget signal`); `None`, uniform.
-pub fn unwrap_with_progress(
+pub(crate) fn unwrap_with_progress(
     meshes: &[ReceiverMesh],
     options: &UnwrapOptions,
     diagonal: f64,

@@ -70,7 +70,7 @@ pub fn emit_receiver(
 
 /// AO and SH of receiver `r` from its rays' directions and whether each
 /// is occluded.
-pub fn integrate_receiver(
+pub(crate) fn integrate_receiver(
     receivers: &Receivers,
     r: usize,
     directions: &[Vec3],

@@ -27,7 +27,7 @@ pub mod mc;
 pub mod sheared;
 pub mod signal;
 pub mod validity;
-pub mod visibility;
+pub(crate) mod visibility;
 
 use crate::atlas::Receivers;
 use crate::sample::{Frame, cosine_hemisphere, receiver_seed, sobol_2d};

@@ -64,7 +64,7 @@ impl BackFaces {
 
 /// Per receiver: inside geometry (see the module doc), from the bake's
 /// sequences for `seed`.
-pub fn inside_geometry(
+pub(crate) fn inside_geometry(
     receivers: &Receivers,
     tracer: &Tracer,
     max_distance: f32,
@@ -83,7 +83,7 @@ pub fn inside_geometry(
 /// [`VALIDITY_RAYS`]). Traced in two rounds of batches: the probe, then the
 /// rest of the test where the probe saw a back face (the rays
 /// [`BackFaces::counts`]).
-pub fn finish_inside(
+pub(crate) fn finish_inside(
     receivers: &Receivers,
     tracer: &Tracer,
     max_distance: f32,

@@ -31,7 +31,7 @@ use rayon::prelude::*;
 
 /// The receiver sequence of the visibility rays (the bake's is stream 0,
 /// the sheared method's sparse pass stream 1).
-pub const VISIBILITY_STREAM: u64 = 2;
+pub(crate) const VISIBILITY_STREAM: u64 = 2;
 
 /// Receivers per batch of rays (and parallel work item).
 const CHUNK: usize = 64;

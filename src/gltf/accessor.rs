@@ -12,7 +12,7 @@ use serde_json::Value;
 
 /// Largest accessor the loader will materialize (bytes); protects the machine
 /// from documents that declare huge counts without backing data.
-pub const MAX_ACCESSOR_BYTES: u64 = 2 << 30;
+pub(crate) const MAX_ACCESSOR_BYTES: u64 = 2 << 30;
 
 /// glTF component types.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,7 +75,7 @@ impl Component {
 }
 
 /// Number of components for an accessor `type` string.
-pub fn type_dims(ty: &str) -> Option<usize> {
+pub(crate) fn type_dims(ty: &str) -> Option<usize> {
     Some(match ty {
         "SCALAR" => 1,
         "VEC2" => 2,

@@ -28,7 +28,7 @@ pub struct Document {
 }
 
 /// Reads and parses a `.glb` or `.gltf` file.
-pub fn read_file(path: &Path) -> Result<Document> {
+pub(crate) fn read_file(path: &Path) -> Result<Document> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     parse(&bytes, crate::file::parent_dir(path))
 }
@@ -169,7 +169,7 @@ fn check_version(json: &Value) -> Result<()> {
 }
 
 /// Decodes a percent-encoded relative URI into a path fragment.
-pub fn percent_decode(uri: &str) -> String {
+pub(crate) fn percent_decode(uri: &str) -> String {
     let bytes = uri.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -189,7 +189,7 @@ pub fn percent_decode(uri: &str) -> String {
 }
 
 /// Resolves a URI (data: or relative path) to bytes. `what` names the object.
-pub fn load_uri(uri: &str, base_dir: &Path, what: &str) -> Result<Vec<u8>> {
+pub(crate) fn load_uri(uri: &str, base_dir: &Path, what: &str) -> Result<Vec<u8>> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let (_, payload) = rest
             .split_once(";base64,")

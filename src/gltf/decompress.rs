@@ -24,10 +24,10 @@ use serde_json::{Value, json};
 use std::collections::HashMap;
 
 /// The Draco primitive extension.
-pub const DRACO: &str = "KHR_draco_mesh_compression";
+pub(crate) const DRACO: &str = "KHR_draco_mesh_compression";
 
 /// The meshopt bufferView extensions (the EXT one and its KHR successor).
-pub const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
+pub(crate) const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
 
 /// Most bytes one decoded bufferView may take.
 const MAX_VIEW_BYTES: usize = 2 << 30;

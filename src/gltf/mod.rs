@@ -21,11 +21,11 @@
 pub mod accessor;
 mod append;
 pub mod container;
-pub mod decompress;
+pub(crate) mod decompress;
 pub mod scene;
 #[cfg(feature = "contract-check")]
 mod schema_check;
-pub mod uris;
+pub(crate) mod uris;
 pub mod write;
 
 pub use container::Document;

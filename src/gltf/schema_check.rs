@@ -49,7 +49,7 @@ fn compiled() -> &'static Compiled {
 
 /// Panics unless the root's and every primitive's `AOBAKE_lightmap`
 /// object validates.
-pub fn assert_valid(json: &Value) {
+pub(crate) fn assert_valid(json: &Value) {
     let c = compiled();
     let check = |v: &Value, index: SchemaIndex, what: &str| {
         // serde_json's arbitrary_precision numbers are re-read as plain ones.

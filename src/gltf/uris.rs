@@ -44,7 +44,7 @@ fn relative_path(target: &Path, base: &Path) -> std::path::PathBuf {
 
 /// Rewrites the relative URIs of external buffers and images so they still
 /// resolve from `to_dir` (the output's directory) instead of `from_dir`.
-pub fn relocate_uris(json: &mut Value, from_dir: &Path, to_dir: &Path) -> Result<()> {
+pub(crate) fn relocate_uris(json: &mut Value, from_dir: &Path, to_dir: &Path) -> Result<()> {
     let from = std::fs::canonicalize(from_dir).map_err(|e| Error::io(from_dir, e))?;
     let to = std::fs::canonicalize(to_dir).map_err(|e| Error::io(to_dir, e))?;
     if from == to {

@@ -34,7 +34,7 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::PathBuf;
 
 /// The extension name written to primitives and the root.
-pub const EXTENSION: &str = "AOBAKE_lightmap";
+pub(crate) const EXTENSION: &str = "AOBAKE_lightmap";
 
 /// What to do with a material that already has an occlusionTexture:
 /// keep it (the bake is still in the extension), or replace it with the

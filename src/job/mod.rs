@@ -31,9 +31,9 @@
 //! - [`shard`](mod@shard): sharded bakes and their merge.
 
 pub mod across;
-pub mod level;
-pub mod page;
-pub mod report;
+pub(crate) mod level;
+pub(crate) mod page;
+pub(crate) mod report;
 pub mod settings;
 pub mod shard;
 
@@ -280,7 +280,7 @@ pub fn bake(input: &Path, output: &Path, s: &BakeSettings, run: &RunOptions) -> 
 }
 
 /// Refuses an output path that is the input file.
-pub fn check_output(input: &Path, output: &Path) -> Result<()> {
+pub(crate) fn check_output(input: &Path, output: &Path) -> Result<()> {
     if file::same_file(input, output) {
         return Err(Error::option_conflict(
             "output",

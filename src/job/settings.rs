@@ -28,7 +28,7 @@ use std::path::PathBuf;
 /// Memory a bake may use (checked against [`estimated_bytes`] before the
 /// per-texel arrays are allocated): the 24 GiB build machines keep room for
 /// the loaded scene and the BVH.
-pub const MAX_BAKE_BYTES: u64 = 16 << 30;
+pub(crate) const MAX_BAKE_BYTES: u64 = 16 << 30;
 
 /// Per atlas texel, an upper bound of what the output stages hold at once:
 /// receiver (texel, position, two normals, footprint, centre inside: 45 B), results (AO
@@ -52,7 +52,7 @@ pub const DEFAULT_PAGE_SIZE: u32 = 4096;
 pub const DEFAULT_RAYS: u32 = 256;
 
 /// Default max occluder distance as a fraction of the scene's bounding-box diagonal.
-pub const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
+pub(crate) const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
 
 /// Baking method: `Adaptive` (ray counts per texel from the occluders'
 /// depth and an axis-aligned filter of the integrated values,
@@ -201,7 +201,7 @@ pub struct BakeSettings {
 
 /// Largest `--min-chart-width`: wider than the bilinear footprint (2
 /// texels) plus the padding on each side buys nothing.
-pub const MAX_MIN_CHART_WIDTH: f32 = 16.0;
+pub(crate) const MAX_MIN_CHART_WIDTH: f32 = 16.0;
 
 impl BakeSettings {
     /// Every setting's default.
@@ -359,11 +359,11 @@ pub fn estimated_bytes(width: u32, height: u32, s: &BakeSettings) -> u64 {
 /// Per atlas texel, what the visibility layer adds to either stage: its
 /// result (16 floats) and, in the bake, the filter's row pass and shares
 /// (2 x 68 B); in the output stages, the float layer (64 B) beside it.
-pub const VISIBILITY_BYTES_PER_TEXEL: u64 = 64 + 2 * 68;
+pub(crate) const VISIBILITY_BYTES_PER_TEXEL: u64 = 64 + 2 * 68;
 
 /// [`estimated_bytes`], knowing whether the scene bakes the visibility
 /// layer (`--visibility auto` decides from its materials).
-pub fn estimated_bytes_with(width: u32, height: u32, s: &BakeSettings, layer: bool) -> u64 {
+pub(crate) fn estimated_bytes_with(width: u32, height: u32, s: &BakeSettings, layer: bool) -> u64 {
     let texels = width as u64 * height as u64;
     let layer = if layer { VISIBILITY_BYTES_PER_TEXEL } else { 0 };
     let (working, kept) = match s.method {

@@ -163,7 +163,7 @@ pub struct FitTargets {
 }
 
 /// Where a page keeps its [`FitTargets`].
-pub type FitCache = std::sync::Mutex<Option<std::sync::Arc<FitTargets>>>;
+pub(crate) type FitCache = std::sync::Mutex<Option<std::sync::Arc<FitTargets>>>;
 
 /// A surface point of the fit: its UV in texels and where it lies.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -184,7 +184,7 @@ fn cell_taps(uv: Vec2, width: u32, height: u32) -> [usize; 4] {
 
 /// Whether the bilinear cell of a lookup at `uv` (texel units) has a
 /// free tap (`free` per texel of a `width` x `height` page).
-pub fn cell_has_free(uv: Vec2, width: u32, height: u32, free: &[bool]) -> bool {
+pub(crate) fn cell_has_free(uv: Vec2, width: u32, height: u32, free: &[bool]) -> bool {
     cell_taps(uv, width, height).iter().any(|&t| free[t])
 }
 

@@ -11,7 +11,7 @@
 use rayon::prelude::*;
 
 /// Marker for "no receiver" (only when there are no receivers at all).
-pub const NONE: u32 = u32::MAX;
+pub(crate) const NONE: u32 = u32::MAX;
 
 /// The 8 neighbours, in the order the search visits them.
 const NEIGHBOURS: [(isize, isize); 8] = [

@@ -50,7 +50,7 @@ use rayon::prelude::*;
 /// ([`super::border::FIT_WEIGHT`]). Flight helmet 1024, 100,000
 /// engine-view points, relight all / interior: 0.5, 1.193x; 0.7, 1.192x;
 /// 1.0, 1.194x (seam jump mean 0.0047, 0.0048, 0.0050 with rows on seams).
-pub const EDGE_WEIGHT: f32 = 0.7;
+pub(crate) const EDGE_WEIGHT: f32 = 0.7;
 
 /// The data term's weight of a texel that has an edge row (1 for the
 /// others).
@@ -76,7 +76,7 @@ impl EdgeRows {
 
 /// The texels of a `width` x `height` page that the rows of `seams` (both
 /// sides, at the stitch's points) and of `cross_page` anchors read.
-pub fn seam_texels(
+pub(crate) fn seam_texels(
     seams: &[Seam],
     cross_page: &[Anchor],
     width: u32,

@@ -60,7 +60,7 @@ impl IntoIterator for Taps {
 /// The uniform cubic B-spline's four weights at fraction `t` in [0, 1)
 /// past the second tap's centre (they sum to 1; at t = 0: 1/6, 4/6, 1/6, 0).
 #[inline]
-pub fn bspline_weights(t: f32) -> [f32; 4] {
+pub(crate) fn bspline_weights(t: f32) -> [f32; 4] {
     let (t2, t3) = (t * t, t * t * t);
     let s = 1.0 - t;
     [

@@ -29,9 +29,9 @@ pub mod border;
 pub mod dilate;
 pub mod edge;
 pub mod engine_view;
-pub mod filter;
+pub(crate) mod filter;
 pub mod seams;
-pub mod spread;
+pub(crate) mod spread;
 
 pub use spread::spread;
 

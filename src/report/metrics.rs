@@ -93,7 +93,7 @@ fn positive_sorted(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
 /// reaches the target or an input is not positive and finite. When even the
 /// cheapest run is at or below the target, its cost is returned (an upper
 /// bound).
-pub fn cost_at_error(points: &[(f64, f64)], target: f64) -> Option<f64> {
+pub(crate) fn cost_at_error(points: &[(f64, f64)], target: f64) -> Option<f64> {
     if !positive(target) {
         return None;
     }
@@ -118,7 +118,7 @@ pub fn cost_at_error(points: &[(f64, f64)], target: f64) -> Option<f64> {
 /// The value of a curve at `x`, interpolated linearly in log-log between
 /// the two nearest points (`points` sorted or not; `None` outside their
 /// range or for non-positive input).
-pub fn loglog_at(points: &[(f64, f64)], x: f64) -> Option<f64> {
+pub(crate) fn loglog_at(points: &[(f64, f64)], x: f64) -> Option<f64> {
     let pts = positive_sorted(points);
     if let Some(&(_, y)) = pts.iter().find(|p| p.0 == x) {
         return Some(y);

@@ -21,12 +21,12 @@
 //! The reference uses a different seed from the runs, so a run is never
 //! correlated with it.
 
-pub mod budget;
-pub mod figures;
-pub mod files;
+pub(crate) mod budget;
+pub(crate) mod figures;
+pub(crate) mod files;
 pub mod markdown;
 pub mod metrics;
-pub mod plot;
+pub(crate) mod plot;
 
 pub use budget::{Budget, DEFAULT_BUDGETS, TARGET_RAYS, parse_budgets};
 pub use figures::{

@@ -48,7 +48,7 @@ pub struct Curve {
 
 /// An error level every curve is compared at, drawn dashed.
 #[derive(Clone, Debug)]
-pub struct Target {
+pub(crate) struct Target {
     pub error: f64,
     pub legend: String,
 }

@@ -99,7 +99,7 @@ impl Shard {
 }
 
 /// The partial of `shard` beside `output`: `OUT.shard-I-of-N`.
-pub fn partial_path(output: &Path, shard: Shard) -> PathBuf {
+pub(crate) fn partial_path(output: &Path, shard: Shard) -> PathBuf {
     let mut name = output.file_name().unwrap_or_default().to_os_string();
     name.push(format!(".shard-{}-of-{}", shard.index, shard.count));
     output.with_file_name(name)

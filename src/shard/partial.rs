@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 const MAGIC: &[u8; 16] = b"AOBAKE-PARTIAL\n\0";
 const END: &[u8; 4] = b"END\0";
 /// The layout's version: a merge refuses another.
-pub const FORMAT: u32 = 1;
+pub(crate) const FORMAT: u32 = 1;
 
 /// What makes two shards parts of the same bake.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]

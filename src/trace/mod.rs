@@ -16,8 +16,8 @@
 //!
 //! Here too: robust ray origins ([`offset_origin`]).
 
-pub mod batch;
-pub mod bvh;
+pub(crate) mod batch;
+pub(crate) mod bvh;
 
 pub use batch::{Closest, Occlusion, Query, RayBatch, for_each_receiver, for_each_receiver_query};
 pub use bvh::{Hit, Tracer};

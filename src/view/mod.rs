@@ -110,7 +110,7 @@ fn kind_of(path: &Path) -> (&'static str, Option<&'static str>) {
 }
 
 /// The content type of a served file, by its extension.
-pub fn content_type(path: &Path) -> &'static str {
+pub(crate) fn content_type(path: &Path) -> &'static str {
     match path.extension().and_then(|e| e.to_str()).unwrap_or("") {
         "html" => "text/html; charset=utf-8",
         "js" | "mjs" => "text/javascript; charset=utf-8",

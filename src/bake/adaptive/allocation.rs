@@ -133,7 +133,7 @@ pub fn unfiltered_margin(moved: f64) -> f64 {
 /// texels' L2 / AO error ratio 0.34 against Monte Carlo's 0.30). With the
 /// unfiltered margin at 1.2: 1.8 leaves the Cornell box's L2 at 0.00121
 /// (over), 2.0 at 0.00114, for 4% more rays there.
-pub const FILTERED_MARGIN: f64 = 2.0;
+pub(crate) const FILTERED_MARGIN: f64 = 2.0;
 
 /// A receiver's margin from the share of its variance its filter removes
 /// (1 - 1/N_eff: 0 unfiltered, near 1 filtered wide): the unfiltered
@@ -254,7 +254,7 @@ pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOpti
 /// receivers' `rays` rays each (its neighbourhood's) all saw nothing:
 /// [`visibility_sd`] of all of them visible, squared.
 #[inline]
-pub fn nothing_seen_variance(rays: u32, count: f32) -> f32 {
+pub(crate) fn nothing_seen_variance(rays: u32, count: f32) -> f32 {
     // The occluded side's smoothed fraction, without 1 - p's cancellation.
     let q = 0.5 / (rays as f32 * count.max(1.0) + 1.0);
     q * (1.0 - q)

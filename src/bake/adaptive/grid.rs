@@ -125,7 +125,7 @@ fn separable(
 /// them).
 #[allow(clippy::too_many_arguments)]
 #[inline]
-pub fn along_line(
+pub(crate) fn along_line(
     receivers: &Receivers,
     grid: &TexelGrid,
     inside: &[bool],
@@ -152,7 +152,7 @@ fn spreads_to(receivers: &Receivers, inside: &[bool], r: usize, n: Vec3, j: usiz
 
 /// The number of compatible receivers within `reach` texels of each
 /// receiver (the support of [`neighbourhood_mean`]), its own included.
-pub fn neighbourhood_count(
+pub(crate) fn neighbourhood_count(
     receivers: &Receivers,
     grid: &TexelGrid,
     inside: &[bool],
@@ -173,7 +173,7 @@ pub fn neighbourhood_count(
 
 /// z_min spread: the minimum of the receivers' own z_min over the
 /// compatible receivers within each one's `reach` texels, its own included.
-pub fn spread_min(
+pub(crate) fn spread_min(
     receivers: &Receivers,
     grid: &TexelGrid,
     inside: &[bool],
@@ -215,7 +215,7 @@ pub fn neighbourhood_mean(
 
 /// A flat `side` x `side` grid of receivers, one per texel, footprint 1.
 #[cfg(test)]
-pub fn flat_grid(side: u32) -> Receivers {
+pub(crate) fn flat_grid(side: u32) -> Receivers {
     let n = (side * side) as usize;
     Receivers {
         width: side,

@@ -33,16 +33,16 @@
 //! Below them: [`options`], [`sums`] (what a receiver's rays add up to),
 //! [`strata`], [`width`] and [`grid`] (the atlas as a neighbourhood).
 
-pub mod adaptive_pass;
-pub mod allocation;
-pub mod bounds;
-pub mod filter;
-pub mod grid;
-pub mod options;
-pub mod prepass;
-pub mod strata;
-pub mod sums;
-pub mod width;
+pub(crate) mod adaptive_pass;
+pub(crate) mod allocation;
+pub(crate) mod bounds;
+pub(crate) mod filter;
+pub(crate) mod grid;
+pub(crate) mod options;
+pub(crate) mod prepass;
+pub(crate) mod strata;
+pub(crate) mod sums;
+pub(crate) mod width;
 
 pub use options::{AdaptiveOptions, MAX_ADAPTIVE_RAYS, MAX_REACH};
 
@@ -222,4 +222,4 @@ pub fn visibility_rays(rays: u32, pre_rays: u32) -> u32 {
 
 /// How many times fewer visibility rays a receiver gets than its
 /// cosine-weighted ones.
-pub const VISIBILITY_RAY_DIVISOR: u32 = 2;
+pub(crate) const VISIBILITY_RAY_DIVISOR: u32 = 2;

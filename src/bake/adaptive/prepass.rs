@@ -73,7 +73,7 @@ fn round_ends(pre_rays: u32) -> Vec<u32> {
 }
 
 /// Traces the pre-pass (see the module doc), in rounds of batches.
-pub fn pre_pass(
+pub(crate) fn pre_pass(
     receivers: &Receivers,
     tracer: &Tracer,
     fill_inside: bool,

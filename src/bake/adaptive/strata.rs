@@ -20,7 +20,7 @@ pub struct Strata {
 }
 
 /// Pre-pass rays at most (the largest `pre_rays`), in 64-bit words.
-pub const STRATA_WORDS: usize = MAX_ADAPTIVE_RAYS as usize / 64;
+pub(crate) const STRATA_WORDS: usize = MAX_ADAPTIVE_RAYS as usize / 64;
 
 impl Strata {
     pub fn of(pre_rays: u32) -> Strata {
@@ -72,12 +72,12 @@ impl Strata {
 }
 
 /// The exponent of the smallest power of two at least `n` (n >= 1).
-pub fn exponent_at_least(n: u32) -> u32 {
+pub(crate) fn exponent_at_least(n: u32) -> u32 {
     n.max(1).next_power_of_two().trailing_zeros()
 }
 
 /// The exponent of the largest power of two at most `n` (n >= 1).
-pub fn exponent_at_most(n: u32) -> u32 {
+pub(crate) fn exponent_at_most(n: u32) -> u32 {
     31 - n.max(1).leading_zeros()
 }
 

@@ -11,7 +11,7 @@ use crate::sh::{self, SH_COUNT};
 use glam::Vec3;
 
 /// Receivers per parallel work item of the passes.
-pub const CHUNK: usize = 64;
+pub(crate) const CHUNK: usize = 64;
 
 /// One receiver's running sums over its rays.
 #[derive(Clone, Copy, Debug, Default)]

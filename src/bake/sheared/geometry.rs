@@ -51,7 +51,7 @@ pub fn lends_rays(rel: Vec3, n: Vec3, geo: Vec3, n_j: Vec3, geo_j: Vec3, footpri
 /// for a cell whose occluders lie in [z_min, z_max]. Infinite when
 /// z_min = z_max (the shear is exact) or no occluder was seen.
 #[inline]
-pub fn spatial_radius(z_min: f32, z_max: f32, omega_v_max: f32) -> f32 {
+pub(crate) fn spatial_radius(z_min: f32, z_max: f32, omega_v_max: f32) -> f32 {
     let inv_diff = 1.0 / z_min - 1.0 / z_max;
     if inv_diff > 0.0 && inv_diff.is_finite() {
         1.0 / (omega_v_max * inv_diff)
@@ -64,7 +64,7 @@ pub fn spatial_radius(z_min: f32, z_max: f32, omega_v_max: f32) -> f32 {
 
 /// Mid depth of Eq. 9: the harmonic mean of z_min and z_max.
 #[inline]
-pub fn mid_depth(z_min: f32, z_max: f32) -> f32 {
+pub(crate) fn mid_depth(z_min: f32, z_max: f32) -> f32 {
     let s = 1.0 / z_min + 1.0 / z_max;
     if s > 0.0 { 2.0 / s } else { f32::INFINITY }
 }
@@ -107,7 +107,7 @@ pub fn miss_depths(mid: &[f32; CELL_COUNT], aim: &mut [f32; CELL_COUNT]) {
 /// Whether the paper's bandlimit test sends a cell to brute force:
 /// Omega_v^max / z_min > Omega_pix with Omega_pix = 0.5 / shading diameter.
 #[inline]
-pub fn needs_brute_force(z_min: f32, omega_v_max: f32, footprint: f32) -> bool {
+pub(crate) fn needs_brute_force(z_min: f32, omega_v_max: f32, footprint: f32) -> bool {
     // Written so that a NaN z_min also sends the cell to brute force.
     z_min.is_nan() || z_min < omega_v_max * footprint * 2.0
 }
@@ -126,7 +126,7 @@ pub fn weight(x: f32, radius: f32) -> f32 {
 
 /// [`weight`] from the squared offset (no square root in the hot loop).
 #[inline]
-pub fn weight_sq(x2: f32, radius: f32) -> f32 {
+pub(crate) fn weight_sq(x2: f32, radius: f32) -> f32 {
     let q2 = x2.max(0.0) / (radius * radius);
     if q2 < 1.0 {
         (1.0 - q2) * (1.0 - q2)
@@ -162,7 +162,7 @@ pub fn reproject(receiver: Vec3, o: Vec3, d: Vec3, target: Vec3) -> Option<(Vec3
 /// receiver, ~1e-8 of the scene) to exactly the receiver, which then
 /// looked open (two-cylinder engine at 1024: a texel of AO 0.5 came out 1).
 #[inline]
-pub fn hit_offset(rel: Vec3, d: Vec3, t: f32) -> Vec3 {
+pub(crate) fn hit_offset(rel: Vec3, d: Vec3, t: f32) -> Vec3 {
     rel + d * t
 }
 
@@ -172,7 +172,7 @@ pub fn hit_offset(rel: Vec3, d: Vec3, t: f32) -> Vec3 {
 /// `e` ([`reproject`] with the target already known). `None` if the ray
 /// runs parallel to that plane.
 #[inline]
-pub fn tangent_offset_sq(rel: Vec3, d: Vec3, e: Vec3) -> Option<f32> {
+pub(crate) fn tangent_offset_sq(rel: Vec3, d: Vec3, e: Vec3) -> Option<f32> {
     let de = d.dot(e);
     if de.abs() < 1e-6 {
         return None;

@@ -34,7 +34,7 @@ use crate::sh::{SH_COUNT, VIS_COUNT};
 use crate::trace::Tracer;
 use serde::Serialize;
 
-pub mod relight;
+pub(crate) mod relight;
 
 use relight::{environments, relight_error};
 

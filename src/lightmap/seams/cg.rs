@@ -18,7 +18,7 @@ const MAX_ITERATIONS: usize = 2000;
 /// step lengths and stops at [`TOLERANCE`] of its right-hand side. Returns
 /// X, the iterations the slowest channel took and whether every channel
 /// converged.
-pub fn conjugate_gradients(
+pub(crate) fn conjugate_gradients(
     apply: &impl Fn(&[f64], &mut [f64]),
     diagonal: &[f64],
     b: &[f64],

@@ -129,7 +129,7 @@ pub fn measure(
 
 /// [`SeamFigures`] of the metric's points: length-weighted mean, p95 and
 /// share over 8/255.
-pub fn summarise(points: &[SeamPoint]) -> SeamFigures {
+pub(crate) fn summarise(points: &[SeamPoint]) -> SeamFigures {
     // (AO jump, SH RMS jump, length weight) per sample point.
     let mut points: Vec<(f64, f64, f64)> = points
         .iter()

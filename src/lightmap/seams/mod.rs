@@ -17,7 +17,7 @@
 //!    solves those seams' two sides together: `crate::job::across`).
 
 pub mod anchor;
-pub mod cg;
+pub(crate) mod cg;
 pub mod find;
 pub mod metric;
 pub mod solve;
@@ -90,7 +90,13 @@ pub struct CrossPageFigures {
 }
 
 /// Mean |AO lookup - AO target| over `anchors`.
-pub fn anchor_gap(anchors: &[Anchor], width: u32, height: u32, ao: &[f32], filter: Filter) -> f64 {
+pub(crate) fn anchor_gap(
+    anchors: &[Anchor],
+    width: u32,
+    height: u32,
+    ao: &[f32],
+    filter: Filter,
+) -> f64 {
     let sum: f64 = anchors
         .iter()
         .map(|a| {
@@ -109,7 +115,7 @@ pub fn channels(layer: bool) -> usize {
 
 /// Writes texel `t`'s channels ([`channels`]) into `out`: AO, then the
 /// SH, then the layer's coefficients if `v` holds them.
-pub fn write_channels(
+pub(crate) fn write_channels(
     ao: &[f32],
     sh: &[[f32; SH_COUNT]],
     v: Option<&[[f32; VIS_COUNT]]>,
@@ -392,7 +398,7 @@ pub fn band(covered: &[bool], width: u32, height: u32) -> Vec<bool> {
 /// The border band for a lookup reaching `reach` texels: per texel,
 /// whether some texel within `reach` (Chebyshev, the page's edge
 /// included) is not covered. `reach` 1: [`band`].
-pub fn band_within(covered: &[bool], width: u32, height: u32, reach: u32) -> Vec<bool> {
+pub(crate) fn band_within(covered: &[bool], width: u32, height: u32, reach: u32) -> Vec<bool> {
     (0..width * height)
         .into_par_iter()
         .map(|t| !interior_within(covered, width, height, t, reach))
