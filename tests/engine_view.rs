@@ -142,8 +142,7 @@ fn the_visibility_layer_relights_where_the_engine_reads_it() {
 
 /// The independent checker's Python (its virtual environment, made by
 /// `../shared/tools/eval/setup.sh`; `AOBAKE_EVAL_PYTHON` overrides) and its
-/// `surfeval.py`, or None with a note where they are missing (under CI:
-/// a failure).
+/// `surfeval.py`, or None where they are missing.
 fn checker() -> Option<(std::path::PathBuf, std::path::PathBuf)> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let script = root.join("../shared/tools/eval/surfeval.py");
@@ -155,13 +154,7 @@ fn checker() -> Option<(std::path::PathBuf, std::path::PathBuf)> {
         });
     match python {
         Some(p) if p.is_file() && script.is_file() => Some((p, script)),
-        _ => {
-            common::tools_present(
-                "the comparison with the independent checker",
-                &["the checker (../shared/tools/eval/setup.sh)"],
-            );
-            None
-        }
+        _ => None,
     }
 }
 
@@ -196,14 +189,10 @@ fn checker_rmse(
     v["all"]["ao_rmse"].as_f64().unwrap()
 }
 
-#[test]
-fn the_engine_view_and_the_checker_agree_on_a_thin_gap() {
-    // Two 2 x 2 planes facing each other across a gap h of 1e-3 of the
-    // scene's diagonal, D = 2h: AO = (h / D)^2 = 1/4 on both faces. An
-    // offset of e of the diagonal moves it to ((h - e) / D)^2, so the two
-    // measurements agree only where both offset their rays far less than
-    // the gap: the contract's vanishing offset. The checker's default (1e-4
-    // of the diagonal, a tenth of this gap) reads 0.2025.
+/// Two 2 x 2 planes facing each other across a gap h of 1e-3 of the
+/// scene's diagonal, D = 2h: AO = (h / D)^2 = 1/4 on both faces. Baked,
+/// with the engine view's AO RMSE over 6,000 points and the written file.
+fn thin_gap_bake() -> (f64, Vec<u8>) {
     let diagonal = 8.0f64.sqrt();
     let h = (1e-3 * diagonal) as f32;
     let recv = quad([0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], true);
@@ -221,9 +210,32 @@ fn the_engine_view_and_the_checker_agree_on_a_thin_gap() {
     let ours = done[0].engine_view.expect("measured").all.ao_rmse;
     let encoded: Vec<_> = done.iter().map(|d| &d.encoded).collect();
     let (bytes, _) = job.write(&level, &encoded, None).unwrap();
-    let Some(checker) = checker() else {
-        return;
-    };
+    (ours, bytes)
+}
+
+#[test]
+fn the_engine_view_of_a_thin_gap_is_the_closed_form() {
+    // The bake is right (a flat 1/4 away from the planes' edges), so the
+    // engine view's error is only its reference's noise and the edges':
+    // its points and reference offset their rays far less than the gap
+    // (an offset of e of the diagonal would read ((h - e) / D)^2).
+    let (ours, _) = thin_gap_bake();
+    assert!(ours < 0.02, "engine view AO RMSE {ours}");
+}
+
+/// The same file through the independent checker (`surfeval.py`, beside
+/// the clone in `../shared/tools/eval`, not part of the repository), so it
+/// is not in a plain `cargo test`: `.ci/run` runs it
+/// (`cargo test --test engine_view -- --ignored`), and there a missing
+/// checker fails it.
+#[test]
+#[ignore = "needs the independent checker in ../shared/tools/eval; .ci/run runs it"]
+fn the_engine_view_and_the_checker_agree_on_a_thin_gap() {
+    // The two measurements agree only where both offset their rays far
+    // less than the gap: the contract's vanishing offset. The checker's
+    // default (1e-4 of the diagonal, a tenth of this gap) reads 0.2025.
+    let (ours, bytes) = thin_gap_bake();
+    let checker = checker().expect("the checker: run ../shared/tools/eval/setup.sh");
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("gap.glb");
     std::fs::write(&path, bytes).unwrap();
@@ -232,8 +244,6 @@ fn the_engine_view_and_the_checker_agree_on_a_thin_gap() {
     eprintln!(
         "AO RMSE: engine view {ours:.4}, checker {theirs:.4} (its default offset {default:.4})"
     );
-    // The bake is right (a flat 1/4 away from the planes' edges): both
-    // figures are the references' noise and the edges', and they agree.
     assert!(ours < 0.02 && theirs < 0.02, "{ours} {theirs}");
     assert!(
         (ours - theirs).abs() < 0.003,
