@@ -1,22 +1,14 @@
-//! Level and page: what every page of a bake shares, and one page ready
-//! for the first ray.
+//! The level: what every page of a bake shares, built once.
 //!
 //! In: a loaded [`Scene`] and validated [`BakeSettings`]. Out: a [`Level`]
 //! (bake-space geometry, the atlas of every page, the BVH, which meshes
-//! get the visibility layer), built once; then per page a [`Page`] that
-//! borrows the level and owns only what is the page's (its one-page atlas,
-//! its receivers, the texels inside geometry), freed once the page is
-//! encoded. Peak memory is the level plus one page, and the memory limit
-//! is checked per page.
+//! get the visibility layer). Each page (`job/page.rs`) borrows it and
+//! owns only what is the page's, freed once the page is encoded: peak
+//! memory is the level plus one page, and the memory limit is checked per
+//! page.
 
-use crate::atlas::{self, Atlas, AtlasSize, Receivers, UnwrapOptions};
+use crate::atlas::{self, Atlas, AtlasSize, UnwrapOptions};
 use crate::bake::signal::{self, TexelBudget};
-use crate::bake::validity;
-
-/// The share of a page a uniform atlas's charts cover, for the texel edge
-/// the signal's pre-pass floors distances at (the packer's utilisation on
-/// the shared assets lies near it).
-const UNIFORM_UTILIZATION: f64 = 0.5;
 use crate::error::{Error, Result};
 use crate::geometry::BakeGeometry;
 use crate::gltf::Scene;
@@ -28,6 +20,11 @@ use crate::lightmap::seams::find::cross_page_seams;
 use crate::lightmap::seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode};
 use crate::stage::{StageTimer, progress_bar};
 use crate::trace::Tracer;
+
+/// The share of a page a uniform atlas's charts cover, for the texel edge
+/// the signal's pre-pass floors distances at (the packer's utilisation on
+/// the shared assets lies near it).
+const UNIFORM_UTILIZATION: f64 = 0.5;
 
 /// What every page of a bake shares: everything before the first texel.
 pub struct Level {
@@ -47,25 +44,6 @@ pub struct Level {
     /// Per page, the bake-space area of its triangles, computed when first
     /// asked for ([`Level::page_surface_areas`]).
     surface_areas: std::sync::OnceLock<Vec<f64>>,
-}
-
-/// One page of a level, prepared: every stage before the first ray. It
-/// borrows the level, so what every page shares is never copied.
-pub struct Page<'a> {
-    pub level: &'a Level,
-    /// The page's index in the level's atlas.
-    pub page: u32,
-    /// This page alone, as a one-page atlas.
-    pub atlas: Atlas,
-    pub receivers: Receivers,
-    /// Per receiver: inside or behind geometry ([`crate::bake::validity`]);
-    /// its texel shows its nearest valid receiver instead. All false
-    /// without the fill; `None` when the method finds them itself (the
-    /// adaptive method, in its pre-pass).
-    pub inside: Option<Vec<bool>>,
-    /// The border fit traced for this page, kept for runs that bake it
-    /// again ([`crate::lightmap::border::FitTargets`]).
-    pub fit_cache: crate::lightmap::border::FitCache,
 }
 
 impl Level {
@@ -262,61 +240,5 @@ impl Level {
     /// Texels per world unit.
     pub fn texel_density(&self) -> f64 {
         self.atlas.texels_per_unit / self.geometry.space.diagonal
-    }
-
-    /// Rasterizes page `page` and finds its receivers inside geometry.
-    pub fn page(
-        &self,
-        page: u32,
-        scene: &Scene,
-        s: &BakeSettings,
-        timer: &mut StageTimer,
-    ) -> Result<Page<'_>> {
-        let geometry = &self.geometry;
-        let atlas = self.atlas.page(page);
-        let receivers = atlas::rasterize(&geometry.receivers, &atlas);
-        if let (UvSource::Existing(set), Some((a, b))) = (s.uv, receivers.first_overlap) {
-            let name = |k: u32| {
-                scene.geometries[scene.instances[geometry.receivers[k as usize].instance].geometry]
-                    .label()
-            };
-            return Err(Error::option_conflict(
-                "uv",
-                format!(
-                    "TEXCOORD_{set} of {} and {} overlap ({} texels): existing UVs must be one shared, non-overlapping lightmap layout; generate them instead",
-                    name(a),
-                    name(b),
-                    receivers.overlapping_texels
-                ),
-            ));
-        }
-        if receivers.is_empty() && self.page_count() == 1 {
-            return Err(Error::Empty(
-                "no texel is covered: every baked triangle is degenerate".into(),
-            ));
-        }
-        // For the tracing passes' caches ([`atlas::order`]); no output changes.
-        let receivers = atlas::order::in_world_order(receivers);
-        timer.lap("rasterize");
-        let inside = if !s.fill_inside {
-            Some(vec![false; receivers.len()])
-        } else if s.method == Method::Adaptive {
-            // Its pre-pass's closest hits make the same test on the same rays.
-            None
-        } else {
-            let seed = page_seed(s.seed, page);
-            let inside =
-                validity::inside_geometry(&receivers, &self.tracer, self.max_distance, seed);
-            timer.lap("validity");
-            Some(inside)
-        };
-        Ok(Page {
-            level: self,
-            page,
-            atlas,
-            receivers,
-            inside,
-            fit_cache: Default::default(),
-        })
     }
 }

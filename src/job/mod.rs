@@ -36,15 +36,17 @@ pub(crate) mod page;
 pub(crate) mod report;
 pub mod settings;
 pub mod shard;
+mod write;
 
 pub use across::AcrossReport;
-pub use level::{Level, Page, page_seed};
-pub use page::{BakePasses, PageOutput, write};
+pub use level::{Level, page_seed};
+pub use page::{BakePasses, Page, PageOutput};
 pub use report::{
     AdaptiveReport, PageDone, PageReport, Report, ShearedReport, VisibilityReport, level_report,
 };
 pub use settings::{BakeSettings, Method, RunOptions, UvSource, VisibilityMode};
 pub use shard::{Merged, bake_shard, merge};
+pub use write::write;
 
 use crate::atlas::{self, Atlas, Receivers};
 use crate::bake::Bake;

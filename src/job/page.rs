@@ -1,22 +1,21 @@
-//! One page: the method's passes, then the lightmap stage and encode; and
-//! the write-back of every page's images into one GLB.
+//! One page: prepared from the level (rasterized, its receivers inside
+//! geometry found), the method's passes, then the lightmap stage and
+//! encode.
 //!
-//! In: a [`Page`] and the settings. Out: [`BakePasses`] (the method's
-//! results and figures), [`PageOutput`] (the page's float lightmap, its
-//! encoded images and seam figures; debug maps and EXR files written if
-//! the run asks), and from the encoded pages of a whole level the output
-//! GLB bytes ([`write`](fn@write)).
+//! In: a [`Level`], the page's index and the settings. Out: a [`Page`]
+//! ([`Level::page`]), [`BakePasses`] (the method's results and figures)
+//! and [`PageOutput`] (the page's float lightmap, its encoded images and
+//! seam figures; debug maps and EXR files written if the run asks).
 
-use super::level::{Level, Page, page_seed};
-use crate::atlas::AtlasSize;
+use super::level::{Level, page_seed};
+use crate::atlas::{self, Atlas, Receivers};
 use crate::bake::adaptive::{self, AdaptiveStats};
 use crate::bake::sheared::{self, ShearedStats};
-use crate::bake::{Bake, BakeParams, mc, visibility};
+use crate::bake::{Bake, BakeParams, mc, validity, visibility};
 use crate::encode::{self, Encoded};
 use crate::error::{Error, Result};
 use crate::file;
 use crate::gltf::Scene;
-use crate::gltf::write::{self, BakeRecord, OutputOptions};
 use crate::job::settings::{BakeSettings, Method, RunOptions, UvSource};
 use crate::lightmap::BorderReport;
 use crate::lightmap::Filter;
@@ -25,6 +24,83 @@ use crate::lightmap::seams::SeamReport;
 use crate::lightmap::{self, Lightmap, PageBake};
 use crate::stage::{StageTime, StageTimer, progress_bar};
 use std::path::{Path, PathBuf};
+
+/// One page of a level, prepared: every stage before the first ray. It
+/// borrows the level, so what every page shares is never copied.
+pub struct Page<'a> {
+    pub level: &'a Level,
+    /// The page's index in the level's atlas.
+    pub page: u32,
+    /// This page alone, as a one-page atlas.
+    pub atlas: Atlas,
+    pub receivers: Receivers,
+    /// Per receiver: inside or behind geometry ([`crate::bake::validity`]);
+    /// its texel shows its nearest valid receiver instead. All false
+    /// without the fill; `None` when the method finds them itself (the
+    /// adaptive method, in its pre-pass).
+    pub inside: Option<Vec<bool>>,
+    /// The border fit traced for this page, kept for runs that bake it
+    /// again ([`crate::lightmap::border::FitTargets`]).
+    pub fit_cache: crate::lightmap::border::FitCache,
+}
+
+impl Level {
+    /// Rasterizes page `page` and finds its receivers inside geometry.
+    pub fn page(
+        &self,
+        page: u32,
+        scene: &Scene,
+        s: &BakeSettings,
+        timer: &mut StageTimer,
+    ) -> Result<Page<'_>> {
+        let geometry = &self.geometry;
+        let atlas = self.atlas.page(page);
+        let receivers = atlas::rasterize(&geometry.receivers, &atlas);
+        if let (UvSource::Existing(set), Some((a, b))) = (s.uv, receivers.first_overlap) {
+            let name = |k: u32| {
+                scene.geometries[scene.instances[geometry.receivers[k as usize].instance].geometry]
+                    .label()
+            };
+            return Err(Error::option_conflict(
+                "uv",
+                format!(
+                    "TEXCOORD_{set} of {} and {} overlap ({} texels): existing UVs must be one shared, non-overlapping lightmap layout; generate them instead",
+                    name(a),
+                    name(b),
+                    receivers.overlapping_texels
+                ),
+            ));
+        }
+        if receivers.is_empty() && self.page_count() == 1 {
+            return Err(Error::Empty(
+                "no texel is covered: every baked triangle is degenerate".into(),
+            ));
+        }
+        // For the tracing passes' caches ([`atlas::order`]); no output changes.
+        let receivers = atlas::order::in_world_order(receivers);
+        timer.lap("rasterize");
+        let inside = if !s.fill_inside {
+            Some(vec![false; receivers.len()])
+        } else if s.method == Method::Adaptive {
+            // Its pre-pass's closest hits make the same test on the same rays.
+            None
+        } else {
+            let seed = page_seed(s.seed, page);
+            let inside =
+                validity::inside_geometry(&receivers, &self.tracer, self.max_distance, seed);
+            timer.lap("validity");
+            Some(inside)
+        };
+        Ok(Page {
+            level: self,
+            page,
+            atlas,
+            receivers,
+            inside,
+            fit_cache: Default::default(),
+        })
+    }
+}
 
 /// What a method's passes over a page's receivers produced.
 pub struct BakePasses {
@@ -294,75 +370,4 @@ pub struct EngineProbe {
     pub points: engine_view::SurfacePoints,
     pub reference: engine_view::PointReference,
     pub centers: Vec<bool>,
-}
-
-/// The output GLB of a level from every page's encoded images (`pages[k]`
-/// is page k's), with the scene's warnings and the writer's. `output_dir`:
-/// where the GLB will be written, so external URIs resolve from there.
-pub fn write(
-    scene: &Scene,
-    level: &Level,
-    pages: &[&Encoded],
-    s: &BakeSettings,
-    output_dir: Option<&Path>,
-    timer: &mut StageTimer,
-) -> Result<(Vec<u8>, Vec<String>)> {
-    timer.restart();
-    let options = OutputOptions {
-        record: BakeRecord {
-            method: s.method.name().to_string(),
-            rays: match s.method {
-                Method::Mc => s.rays,
-                Method::Sheared => s.sheared.sparse_rays,
-                Method::Adaptive => s.adaptive.quality,
-            },
-            seed: s.seed,
-            max_distance: level.max_distance_world,
-            width: level.atlas.width,
-            height: level.atlas.height,
-            filter: s.filter,
-        },
-        occlusion: s.occlusion,
-        visibility_meshes: level.visibility_meshes.clone(),
-        existing_uv: match s.uv {
-            UvSource::Existing(set) => Some(set),
-            UvSource::Generate => None,
-        },
-        output_dir: output_dir.map(Path::to_path_buf),
-    };
-    let mut warnings = scene.warnings.clone();
-    if let (Some(relaxed), AtlasSize::Resolution(r)) = (level.atlas.relaxed, s.size) {
-        let why = match relaxed.starved {
-            true => format!(
-                "with padding {} and minimum chart width {} the charts would cover under {:.0}% of one {r}x{r} page",
-                s.padding,
-                s.min_chart_width,
-                100.0 * crate::atlas::unwrap::STARVED_UTILIZATION
-            ),
-            false => format!(
-                "the {} charts do not fit one {r}x{r} page with padding {} and minimum chart width {}",
-                level.atlas.charts, s.padding, s.min_chart_width
-            ),
-        };
-        warnings.push(format!(
-            "{why}: packed with padding {} and minimum chart width {}{} (raise --resolution for the requested ones)",
-            relaxed.padding,
-            relaxed.min_chart_width,
-            if relaxed.padding == 0 {
-                ", so lookups at chart edges blend neighbouring charts"
-            } else {
-                ""
-            },
-        ));
-    }
-    let glb = write::build_glb(
-        scene,
-        &level.geometry,
-        &level.atlas,
-        pages,
-        &options,
-        &mut warnings,
-    )?;
-    timer.lap("write");
-    Ok((glb, warnings))
 }

@@ -1,0 +1,87 @@
+//! The write-back: a level's output GLB from every page's encoded images.
+//!
+//! In: the scene, the [`Level`], every page's [`Encoded`] images and the
+//! settings. Out: the GLB's bytes ([`gltf::write`](crate::gltf::write)
+//! edits the input's JSON) and the warnings, the scene's and the writer's,
+//! with the one a relaxed atlas gets.
+
+use super::level::Level;
+use crate::atlas::AtlasSize;
+use crate::encode::Encoded;
+use crate::error::Result;
+use crate::gltf::Scene;
+use crate::gltf::write::{self, BakeRecord, OutputOptions};
+use crate::job::settings::{BakeSettings, Method, UvSource};
+use crate::stage::StageTimer;
+use std::path::Path;
+
+/// The output GLB of a level from every page's encoded images (`pages[k]`
+/// is page k's), with the scene's warnings and the writer's. `output_dir`:
+/// where the GLB will be written, so external URIs resolve from there.
+pub fn write(
+    scene: &Scene,
+    level: &Level,
+    pages: &[&Encoded],
+    s: &BakeSettings,
+    output_dir: Option<&Path>,
+    timer: &mut StageTimer,
+) -> Result<(Vec<u8>, Vec<String>)> {
+    timer.restart();
+    let options = OutputOptions {
+        record: BakeRecord {
+            method: s.method.name().to_string(),
+            rays: match s.method {
+                Method::Mc => s.rays,
+                Method::Sheared => s.sheared.sparse_rays,
+                Method::Adaptive => s.adaptive.quality,
+            },
+            seed: s.seed,
+            max_distance: level.max_distance_world,
+            width: level.atlas.width,
+            height: level.atlas.height,
+            filter: s.filter,
+        },
+        occlusion: s.occlusion,
+        visibility_meshes: level.visibility_meshes.clone(),
+        existing_uv: match s.uv {
+            UvSource::Existing(set) => Some(set),
+            UvSource::Generate => None,
+        },
+        output_dir: output_dir.map(Path::to_path_buf),
+    };
+    let mut warnings = scene.warnings.clone();
+    if let (Some(relaxed), AtlasSize::Resolution(r)) = (level.atlas.relaxed, s.size) {
+        let why = match relaxed.starved {
+            true => format!(
+                "with padding {} and minimum chart width {} the charts would cover under {:.0}% of one {r}x{r} page",
+                s.padding,
+                s.min_chart_width,
+                100.0 * crate::atlas::unwrap::STARVED_UTILIZATION
+            ),
+            false => format!(
+                "the {} charts do not fit one {r}x{r} page with padding {} and minimum chart width {}",
+                level.atlas.charts, s.padding, s.min_chart_width
+            ),
+        };
+        warnings.push(format!(
+            "{why}: packed with padding {} and minimum chart width {}{} (raise --resolution for the requested ones)",
+            relaxed.padding,
+            relaxed.min_chart_width,
+            if relaxed.padding == 0 {
+                ", so lookups at chart edges blend neighbouring charts"
+            } else {
+                ""
+            },
+        ));
+    }
+    let glb = write::build_glb(
+        scene,
+        &level.geometry,
+        &level.atlas,
+        pages,
+        &options,
+        &mut warnings,
+    )?;
+    timer.lap("write");
+    Ok((glb, warnings))
+}
