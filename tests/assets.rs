@@ -213,7 +213,9 @@ fn the_generated_scenes_are_the_scripts_output() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
+    // -B: no bytecode cache of tools/glb.py left in the source tree.
     let status = std::process::Command::new("python3")
+        .arg("-B")
         .arg(root.join("tools/test_scenes.py"))
         .arg(dir.path())
         .status()

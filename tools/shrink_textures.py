@@ -15,27 +15,9 @@ environment has it).
 """
 import argparse
 import io
-import json
-import struct
 
+from glb import read_glb, write_glb
 from PIL import Image
-
-
-def read_glb(path):
-    data = open(path, "rb").read()
-    magic, version, _ = struct.unpack_from("<4sII", data, 0)
-    if magic != b"glTF" or version != 2:
-        raise SystemExit(f"{path}: not a GLB 2.0 file")
-    offset, json_doc, bin_chunk = 12, None, b""
-    while offset < len(data):
-        length, kind = struct.unpack_from("<II", data, offset)
-        chunk = data[offset + 8 : offset + 8 + length]
-        if kind == 0x4E4F534A:
-            json_doc = json.loads(chunk)
-        elif kind == 0x004E4942:
-            bin_chunk = chunk
-        offset += 8 + length
-    return json_doc, bin_chunk
 
 
 def shrink(blob, mime, size):
@@ -51,10 +33,6 @@ def shrink(blob, mime, size):
     else:
         image.save(out, "PNG", optimize=True)
     return out.getvalue()
-
-
-def pad4(b, fill=b"\0"):
-    return b + fill * (-len(b) % 4)
 
 
 def main():
@@ -93,13 +71,7 @@ def main():
         v["byteLength"] = len(bytes_)
         out += bytes_
     doc["buffers"][0]["byteLength"] = len(out)
-    json_bytes = pad4(json.dumps(doc, separators=(",", ":")).encode(), b" ")
-    bin_bytes = pad4(out)
-    total = 12 + 8 + len(json_bytes) + 8 + len(bin_bytes)
-    with open(args.output, "wb") as f:
-        f.write(struct.pack("<4sII", b"glTF", 2, total))
-        f.write(struct.pack("<II", len(json_bytes), 0x4E4F534A) + json_bytes)
-        f.write(struct.pack("<II", len(bin_bytes), 0x004E4942) + bin_bytes)
+    write_glb(args.output, doc, out)
 
 
 if __name__ == "__main__":

@@ -24,11 +24,12 @@ repository, each with the property its test needs:
 
 No dependencies beyond the standard library.
 """
-import json
 import math
 import os
 import struct
 import sys
+
+from glb import write_glb
 
 
 class Mesh:
@@ -71,10 +72,22 @@ def box(c, h):
     return m
 
 
+def grid(rows, cols):
+    """Two triangles per cell of a (rows + 1) x (cols + 1) vertex grid,
+    row-major, counter-clockwise with u along a row and v across rows."""
+    idx = []
+    for j in range(rows):
+        for i in range(cols):
+            a = j * (cols + 1) + i
+            b = a + cols + 1
+            idx += [a, b, a + 1, a + 1, b, b + 1]
+    return idx
+
+
 def cylinder(base, r, height, seg=32, rings=8):
     """A smooth-shaded open cylinder standing on `base`."""
     m = Mesh()
-    pos, nrm, uv, idx = [], [], [], []
+    pos, nrm, uv = [], [], []
     for j in range(rings + 1):
         y = base[1] + height * j / rings
         for i in range(seg + 1):
@@ -83,12 +96,7 @@ def cylinder(base, r, height, seg=32, rings=8):
             pos.append((base[0] + r * n[0], y, base[2] + r * n[2]))
             nrm.append(n)
             uv.append((r * a, y))
-    for j in range(rings):
-        for i in range(seg):
-            a = j * (seg + 1) + i
-            b = a + seg + 1
-            idx += [a, b, a + 1, a + 1, b, b + 1]
-    return m.add(pos, nrm, uv, idx)
+    return m.add(pos, nrm, uv, grid(rings, seg))
 
 
 def arch(cx, cy, z0, z1, r_in, r_out, seg=24):
@@ -127,7 +135,7 @@ def arch(cx, cy, z0, z1, r_in, r_out, seg=24):
 
 def torus(r_major, r_minor, seg=24, sides=12):
     m = Mesh()
-    pos, nrm, uv, idx = [], [], [], []
+    pos, nrm, uv = [], [], []
     for j in range(sides + 1):
         b = 2 * math.pi * j / sides
         for i in range(seg + 1):
@@ -137,12 +145,7 @@ def torus(r_major, r_minor, seg=24, sides=12):
             pos.append((c[0] + r_minor * n[0], c[1] + r_minor * n[1], c[2] + r_minor * n[2]))
             nrm.append(n)
             uv.append((i / seg, j / sides))
-    for j in range(sides):
-        for i in range(seg):
-            a = j * (seg + 1) + i
-            b = a + seg + 1
-            idx += [a, b, a + 1, a + 1, b, b + 1]
-    return m.add(pos, nrm, uv, idx)
+    return m.add(pos, nrm, uv, grid(sides, seg))
 
 
 def merged(parts):
@@ -214,13 +217,7 @@ class Glb:
         while len(self.bin) % 4:
             self.bin.append(0)
         self.doc["buffers"][0]["byteLength"] = len(self.bin)
-        j = json.dumps(self.doc, separators=(",", ":")).encode()
-        j += b" " * (-len(j) % 4)
-        total = 12 + 8 + len(j) + 8 + len(self.bin)
-        with open(path, "wb") as f:
-            f.write(struct.pack("<4sII", b"glTF", 2, total))
-            f.write(struct.pack("<II", len(j), 0x4E4F534A) + j)
-            f.write(struct.pack("<II", len(self.bin), 0x004E4942) + bytes(self.bin))
+        write_glb(path, self.doc, self.bin)
 
 
 def courtyard(path):
