@@ -165,80 +165,50 @@ pub fn seconds_of(stages: &[StageTime], stage: &str) -> f64 {
         .sum()
 }
 
-/// A stage's progress: a bar on stderr, drawn only if `show` and stderr is
-/// a terminal, where the library is built with the `cli` feature (the
-/// binary's); without it, nothing is drawn and nothing is linked.
-pub struct Progress {
-    #[cfg(feature = "cli")]
-    bar: indicatif::ProgressBar,
-}
+/// A stage's progress: with the `cli` feature (the binary's) indicatif's
+/// bar on stderr, drawn only if asked and stderr is a terminal; without
+/// it, a bar that draws nothing and links nothing.
+#[cfg(feature = "cli")]
+pub(crate) type Progress = indicatif::ProgressBar;
 
+#[cfg(not(feature = "cli"))]
+pub(crate) struct Progress;
+
+/// The calls the stages make on a bar, doing nothing.
+#[cfg(not(feature = "cli"))]
 impl Progress {
-    /// `n` more steps done.
-    pub fn inc(&self, n: u64) {
-        #[cfg(feature = "cli")]
-        self.bar.inc(n);
-        #[cfg(not(feature = "cli"))]
-        let _ = n;
-    }
-
-    /// The stage has `len` steps in all (known once it has begun).
-    pub fn set_length(&self, len: u64) {
-        #[cfg(feature = "cli")]
-        self.bar.set_length(len);
-        #[cfg(not(feature = "cli"))]
-        let _ = len;
-    }
-
-    /// `done` steps are done.
-    pub fn set_position(&self, done: u64) {
-        #[cfg(feature = "cli")]
-        self.bar.set_position(done);
-        #[cfg(not(feature = "cli"))]
-        let _ = done;
-    }
-
-    /// What the stage is doing now.
-    pub fn set_message(&self, msg: impl Into<std::borrow::Cow<'static, str>>) {
-        #[cfg(feature = "cli")]
-        self.bar.set_message(msg);
-        #[cfg(not(feature = "cli"))]
-        let _ = msg.into();
-    }
-
-    /// The stage is over: the bar goes.
-    pub fn finish_and_clear(&self) {
-        #[cfg(feature = "cli")]
-        self.bar.finish_and_clear();
-    }
+    pub(crate) fn inc(&self, _: u64) {}
+    pub(crate) fn set_length(&self, _: u64) {}
+    pub(crate) fn set_position(&self, _: u64) {}
+    pub(crate) fn set_message(&self, _: impl Into<std::borrow::Cow<'static, str>>) {}
+    pub(crate) fn finish_and_clear(&self) {}
 }
 
 /// The progress of a stage of `len` steps named `msg` (see [`Progress`]).
+#[cfg(feature = "cli")]
 pub(crate) fn progress_bar(show: bool, len: u64, msg: &'static str) -> Progress {
-    #[cfg(feature = "cli")]
-    {
-        use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-        let bar = ProgressBar::with_draw_target(
-            Some(len),
-            if show && std::io::stderr().is_terminal() {
-                ProgressDrawTarget::stderr()
-            } else {
-                ProgressDrawTarget::hidden()
-            },
-        );
-        bar.set_style(
-            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, {per_sec}, eta {eta}")
-                .expect("template")
-                .progress_chars("=> "),
-        );
-        bar.set_message(msg);
-        Progress { bar }
-    }
-    #[cfg(not(feature = "cli"))]
-    {
-        let _ = (show, len, msg);
-        Progress {}
-    }
+    use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+    let bar = ProgressBar::with_draw_target(
+        Some(len),
+        if show && std::io::stderr().is_terminal() {
+            ProgressDrawTarget::stderr()
+        } else {
+            ProgressDrawTarget::hidden()
+        },
+    );
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len}, {per_sec}, eta {eta}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(msg);
+    bar
+}
+
+/// The progress of a stage, drawing nothing (no `cli` feature).
+#[cfg(not(feature = "cli"))]
+pub(crate) fn progress_bar(_: bool, _: u64, _: &'static str) -> Progress {
+    Progress
 }
 
 #[cfg(test)]
