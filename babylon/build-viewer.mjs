@@ -1,10 +1,10 @@
 // Builds the Babylon.js bundle `aobake view` serves (viewer-entry.js:
-// Babylon.js 9.28.0 as pinned, and this folder's importer) into
+// Babylon.js 9.28.0 as pinned, and the package aobake-babylon) into
 // viewer/vendor/babylon/aobake-babylon.js.gz, or with --check verifies that
 // the committed file is what this checkout builds (babylon.test.mjs runs
 // the check, so the bundle cannot fall behind the importer).
 //
-// Run: node babylon/build-viewer.mjs [--check]   (after npm ci --prefix babylon)
+// Run: node babylon/build-viewer.mjs [--check]   (after npm ci in the repository's root)
 
 import { build } from 'esbuild';
 import { gunzipSync, gzipSync, constants } from 'node:zlib';
@@ -48,7 +48,7 @@ if (process.argv[1] === fileURLToPath(import.meta.url)) {
     const js = await bundle();
     mkdirSync(dirname(bundlePath), { recursive: true });
     writeFileSync(bundlePath, gzipSync(js, { level: constants.Z_BEST_COMPRESSION }));
-    copyFileSync(join(here, 'node_modules/@babylonjs/core/license.md'), join(dirname(bundlePath), 'LICENSE'));
+    copyFileSync(join(here, '../node_modules/@babylonjs/core/license.md'), join(dirname(bundlePath), 'LICENSE'));
     console.log(`${bundlePath}: ${js.length} bytes, gzip ${readFileSync(bundlePath).length}`);
   }
 }

@@ -1,5 +1,5 @@
 // What `aobake view`'s Babylon.js page (viewer/babylon-viewer.js) imports:
-// the Babylon.js pieces it uses and this folder's importer, bundled into
+// the Babylon.js pieces it uses and the package aobake-babylon, bundled into
 // one module by build-viewer.mjs (viewer/vendor/babylon/aobake-babylon.js.gz,
 // served gzip-encoded and built into the binary).
 
@@ -18,4 +18,4 @@ export { SceneLoader } from '@babylonjs/core/Loading/sceneLoader.js';
 export { Constants } from '@babylonjs/core/Engines/constants.js';
 export { HDRFiltering } from '@babylonjs/core/Materials/Textures/Filtering/hdrFiltering.js';
 export { ToHalfFloat } from '@babylonjs/core/Misc/halfFloat.js';
-export { AobakeLightmaps, registerAobakeLightmap, toBakeRows } from './aobake-lightmap.js';
+export { AobakeLightmaps, registerAobakeLightmap, toBakeRows } from 'aobake-babylon';

@@ -113,8 +113,8 @@ struct ViewArgs {
     /// Port on 127.0.0.1 (0: any free port)
     #[arg(long, default_value_t = 8080)]
     port: u16,
-    /// Serve the viewer from this directory (laid out as the repository's
-    /// viewer/, three.js in vendor/three) instead of the copy built in
+    /// Serve the viewer from a checkout's viewer/ directory (the page's
+    /// packages from the checkout's packages/) instead of the copy built in
     #[arg(long, value_name = "DIR")]
     viewer_dir: Option<PathBuf>,
     /// The engine the printed address opens (the page switches too):

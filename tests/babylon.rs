@@ -1,10 +1,10 @@
-//! The Babylon.js importer (`babylon/aobake-lightmap.js`) in a real
-//! browser: runs `babylon/test` (node:test driving Debian's headless
+//! The Babylon.js importer (the package `packages/aobake-babylon`) in a
+//! real browser: runs `babylon/test` (node:test driving Debian's headless
 //! Chromium through the viewer's playwright-core harness) with this
 //! build's `aobake`.
 //!
-//! Needs node, `npm ci --prefix viewer`, `npm ci --prefix babylon` and the
-//! `chromium` package (`.ci/run` installs them). Without them the test says
+//! Needs node, `npm ci` in the repository's root and the `chromium`
+//! package (`.ci/run` installs them). Without them the test says
 //! so and passes, except under CI (`CI` set) or with
 //! `AOBAKE_REQUIRE_TOOLS` set, where it fails.
 
@@ -23,17 +23,17 @@ fn babylon_relights_bakes_in_a_real_browser() {
             "test/babylon.test.mjs",
             "test/engines.test.mjs",
         ],
-        &[
-            (
-                !root.join("viewer/node_modules/playwright-core").is_dir(),
-                "npm ci --prefix viewer",
-            ),
-            (
-                !babylon.join("node_modules/@babylonjs/core").is_dir()
-                    || !babylon.join("node_modules/esbuild").is_dir(),
-                "npm ci --prefix babylon",
-            ),
-        ],
+        &[(
+            [
+                "playwright-core",
+                "@babylonjs/core",
+                "esbuild",
+                "aobake-babylon",
+            ]
+            .iter()
+            .any(|m| !root.join("node_modules").join(m).is_dir()),
+            "npm ci",
+        )],
         env!("CARGO_BIN_EXE_aobake"),
     );
 }

@@ -1,6 +1,6 @@
 // The viewer page in Babylon.js (index.html?engine=babylon): the same bar,
 // environments and `window.aobakeViewer` calls as the three.js page
-// (viewer.js), with babylon/aobake-lightmap.js as the importer. Babylon.js
+// (viewer.js), with the package aobake-babylon as the importer. Babylon.js
 // and the importer come as one bundle (vendor/babylon/aobake-babylon.js,
 // built by babylon/build-viewer.mjs).
 //

@@ -4,7 +4,7 @@
 // of them) by default, or with --views helmet the flight helmet's (the
 // goggles and straps, the hose and the leather, close up).
 //
-//   npm ci --prefix viewer
+//   npm ci
 //   node viewer/engine-view-shots.mjs OUT_DIR [--views sponza|helmet] A.glb [B.glb ...]
 //
 // Serves the viewer with `aobake view` (target/release/aobake, or

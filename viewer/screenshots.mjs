@@ -2,7 +2,7 @@
 // relit with its SH lightmaps under two environments, and the flight helmet
 // with and without the visibility layer (its normal maps in the baked light).
 //
-//   cargo build --release && npm ci --prefix viewer
+//   cargo build --release && npm ci
 //   node viewer/screenshots.mjs [OUT_DIR (docs/viewer)] [SCENE ...]
 //
 // Bakes the scenes with target/release/aobake (or AOBAKE_BIN) into a

@@ -11,7 +11,7 @@
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { AobakeLightmapPlugin, AobakeLightmaps } from './aobake-lightmap.js';
+import { AobakeLightmapPlugin, AobakeLightmaps } from 'aobake-three';
 import {
   describe, environment, say, startPage, state, status as barStatus, viewEvents,
 } from './bar.js';

@@ -1,4 +1,4 @@
-// The Babylon.js importer (babylon/aobake-lightmap.js) in a real browser
+// The Babylon.js importer (the package aobake-babylon) in a real browser
 // (Debian's Chromium, headless, SwiftShader WebGL2), against expectations
 // computed here from the decoded textures, independently of the shader and
 // of Babylon: the relit value sum_i c_i L_i at probe pixels, with c_i read
@@ -6,9 +6,8 @@
 // own projection of the environment's radiance function (in the bake's
 // frame, through the loader's root matrix).
 //
-// Run: npm test --prefix babylon (after `cargo build --release`,
-// `npm ci --prefix viewer` and `npm ci --prefix babylon`); `cargo test`
-// runs it through tests/babylon.rs.
+// Run: npm run test:babylon (after `cargo build --release` and `npm ci` in
+// the repository's root); `cargo test` runs it through tests/babylon.rs.
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';

@@ -6,15 +6,14 @@
 // normal-mapped helmet the anchored diffuse) is compared pixel by pixel at
 // 8 bits; the beauty frames' difference is measured and printed.
 //
-// Run: npm test --prefix babylon (after `cargo build --release`, `npm ci
-// --prefix viewer` and `npm ci --prefix babylon`); cargo test runs it
-// through tests/babylon.rs.
+// Run: npm run test:babylon (after `cargo build --release` and `npm ci` in
+// the repository's root); cargo test runs it through tests/babylon.rs.
 
 import { after, before, test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync, writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import pngjs from '../../viewer/node_modules/pngjs/lib/png.js';
+import pngjs from 'pngjs';
 import { bake, launch, open, repoDir, serve, tempDir, testAssets } from '../../viewer/test/harness.mjs';
 import { readGlb, writeGlb } from '../../viewer/test/decode.mjs';
 import { check } from '../build-viewer.mjs';

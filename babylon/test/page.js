@@ -14,7 +14,7 @@ import { RawCubeTexture } from '@babylonjs/core/Materials/Textures/rawCubeTextur
 import { CubeMapToSphericalPolynomialTools } from '@babylonjs/core/Misc/HighDynamicRange/cubemapToSphericalPolynomial.js';
 import { SceneLoader } from '@babylonjs/core/Loading/sceneLoader.js';
 import { Constants } from '@babylonjs/core/Engines/constants.js';
-import { AobakeLightmaps, registerAobakeLightmap } from '../aobake-lightmap.js';
+import { AobakeLightmaps, registerAobakeLightmap } from 'aobake-babylon';
 
 const canvas = document.getElementById('view');
 const engine = new Engine(canvas, false, { preserveDrawingBuffer: true, stencil: false });

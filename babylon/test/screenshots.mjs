@@ -2,7 +2,7 @@
 // and Sponza under the page's sky environment, SH relighting against AO only.
 //
 // Run: node babylon/test/screenshots.mjs (after `cargo build --release`,
-// `npm ci --prefix viewer` and `npm ci --prefix babylon`).
+// `npm ci` in the repository's root).
 
 import { build } from 'esbuild';
 import { createServer } from 'node:http';

@@ -1,31 +1,42 @@
 //! The viewer's files built into the binary, so an installed `aobake view`
-//! serves a working page from any directory: the page (`viewer/`) and the
-//! three.js modules it imports (`viewer/vendor/three/`, the files of the
-//! npm package `three` pinned in `viewer/package.json`, MIT licensed; a
-//! test checks they equal the installed package's), and Babylon.js with
-//! its importer as one gzip-compressed module (`viewer/vendor/babylon/`,
+//! serves a working page from any directory: the page (`viewer/`), the
+//! engine importer packages it imports as a user of the npm packages would
+//! (`packages/aobake-contract` and `packages/aobake-three`, named in the
+//! page's import map and served under `packages/`), the three.js modules
+//! (`viewer/vendor/three/`, the files of the npm package `three` pinned in
+//! the repository's `package.json`, MIT licensed; a test checks they equal
+//! the installed package's), and Babylon.js with the `aobake-babylon`
+//! package as one gzip-compressed module (`viewer/vendor/babylon/`,
 //! Apache-2.0, built by `babylon/build-viewer.mjs`; a test checks it is
 //! what the checkout builds).
 //!
 //! In: a request path relative to the viewer's root. Out: the file's
 //! bytes, if built in.
 
-/// Every built-in file: its path under `viewer/` and its bytes.
+/// Every built-in file: its path as served (under `viewer/`, or under
+/// `packages/` for the importer packages) and its bytes.
 pub const FILES: &[(&str, &[u8])] = &[
     ("index.html", include_bytes!("../../viewer/index.html")),
     ("viewer.js", include_bytes!("../../viewer/viewer.js")),
     (
-        "aobake-lightmap.js",
-        include_bytes!("../../viewer/aobake-lightmap.js"),
+        "packages/aobake-three/aobake-lightmap.js",
+        include_bytes!("../../packages/aobake-three/aobake-lightmap.js"),
     ),
     (
-        "aobake-extension.js",
-        include_bytes!("../../viewer/aobake-extension.js"),
+        "packages/aobake-contract/index.js",
+        include_bytes!("../../packages/aobake-contract/index.js"),
     ),
-    ("aobake-sh.js", include_bytes!("../../viewer/aobake-sh.js")),
     (
-        "aobake-glsl.js",
-        include_bytes!("../../viewer/aobake-glsl.js"),
+        "packages/aobake-contract/extension.js",
+        include_bytes!("../../packages/aobake-contract/extension.js"),
+    ),
+    (
+        "packages/aobake-contract/sh.js",
+        include_bytes!("../../packages/aobake-contract/sh.js"),
+    ),
+    (
+        "packages/aobake-contract/glsl.js",
+        include_bytes!("../../packages/aobake-contract/glsl.js"),
     ),
     ("bar.js", include_bytes!("../../viewer/bar.js")),
     (

@@ -3,7 +3,8 @@
 //! page also opens local files by itself).
 //!
 //! In: the viewer's files (built into the binary, [`embedded`], or a
-//! directory laid out as `viewer/`), an optional GLB, a port (0: any free
+//! checkout's `viewer/` directory, whose page imports the importer packages
+//! from the checkout's `packages/`), an optional GLB, a port (0: any free
 //! one). Out: an HTTP server on 127.0.0.1 answering GET requests: `/` is
 //! the page, `/model.glb` the file, every other path a viewer file. It
 //! runs until the process ends.
@@ -15,12 +16,15 @@ use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Component, Path, PathBuf};
 
+/// Where the page finds the importer packages, as served and in a checkout.
+const PACKAGES: &str = "packages/";
+
 /// What the server serves.
 #[derive(Clone, Debug)]
 pub struct ViewSite {
-    /// The viewer's directory (index.html, aobake-lightmap.js,
-    /// vendor/three); `None`: the copy built into the binary
-    /// ([`embedded`]).
+    /// A checkout's `viewer/` directory (index.html, viewer.js,
+    /// vendor/three), the page's packages read from `packages/` beside it;
+    /// `None`: the copy built into the binary ([`embedded`]).
     pub root: Option<PathBuf>,
     /// Served as `/model.glb`.
     pub model: Option<PathBuf>,
@@ -52,6 +56,17 @@ impl ViewSite {
                     format!(
                         "{} has no vendor/three/build/three.module.js",
                         root.display()
+                    ),
+                ));
+            }
+            let plugin = Path::new(PACKAGES).join("aobake-three/aobake-lightmap.js");
+            if !root.join("..").join(&plugin).is_file() {
+                return Err(Error::option_conflict(
+                    "viewer_dir",
+                    format!(
+                        "{} has no ../{} (the page's three.js plugin)",
+                        root.display(),
+                        plugin.display()
                     ),
                 ));
             }
@@ -89,6 +104,12 @@ impl ViewSite {
         [rel, gzipped.as_str()]
             .into_iter()
             .find_map(|rel| match &self.root {
+                // The packages' files the page imports, from the checkout's
+                // packages/ (not their manifests or tests).
+                Some(root) if rel.starts_with(PACKAGES) => embedded::file(rel)
+                    .map(|_| root.join("..").join(rel))
+                    .filter(|p| p.is_file())
+                    .map(Served::File),
                 Some(root) => Some(root.join(rel))
                     .filter(|p| p.is_file())
                     .map(Served::File),
@@ -241,15 +262,61 @@ mod tests {
             "/viewer.js",
             "/vendor/three/build/three.core.js",
             "/vendor/babylon/aobake-babylon.js",
+            "/packages/aobake-three/aobake-lightmap.js",
+            "/packages/aobake-contract/index.js",
         ] {
             assert!(
                 matches!(built_in.resolve(path), Some(Served::Embedded(..))),
                 "{path}"
             );
         }
-        for refused in ["/../Cargo.toml", "/package.json", "/model.glb", "/.x"] {
+        for refused in [
+            "/../Cargo.toml",
+            "/package.json",
+            "/model.glb",
+            "/.x",
+            "/packages/aobake-three/package.json",
+        ] {
             assert_eq!(built_in.resolve(refused), None, "{refused}");
         }
+    }
+
+    /// From a checkout, the page's packages come from `packages/` beside
+    /// `viewer/`: the modules the page imports, not the manifests or tests.
+    #[test]
+    fn a_checkouts_viewer_imports_its_packages() {
+        let dir = tempfile::tempdir().unwrap();
+        let viewer = dir.path().join("viewer");
+        let contract = dir.path().join("packages/aobake-contract");
+        std::fs::create_dir_all(&viewer).unwrap();
+        std::fs::create_dir_all(contract.join("test")).unwrap();
+        std::fs::write(viewer.join("index.html"), "page").unwrap();
+        for f in ["index.js", "sh.js", "package.json", "test/a.mjs"] {
+            std::fs::write(contract.join(f), "x").unwrap();
+        }
+        let site = ViewSite {
+            root: Some(viewer.clone()),
+            model: None,
+        };
+        for f in ["index.js", "sh.js"] {
+            assert_eq!(
+                site.resolve(&format!("/packages/aobake-contract/{f}")),
+                Some(Served::File(
+                    viewer.join("../packages/aobake-contract").join(f)
+                )),
+                "{f}"
+            );
+        }
+        for refused in [
+            "/packages/aobake-contract/package.json",
+            "/packages/aobake-contract/test/a.mjs",
+            "/packages/../viewer/index.html",
+            "/packages/aobake-contract/../../x",
+        ] {
+            assert_eq!(site.resolve(refused), None, "{refused}");
+        }
+        // check() wants the three.js plugin beside the page.
+        assert!(site.check().is_err());
     }
 
     /// The built-in page imports only what is built in: every relative
@@ -301,5 +368,44 @@ mod tests {
             }
         }
         assert!(missing.is_empty(), "{missing:?}");
+    }
+
+    /// Every bare import of a built-in module (`'three'`,
+    /// `'aobake-contract'`) is a name in the page's import map, so the
+    /// browser can resolve it; the Babylon.js bundle has none.
+    #[test]
+    fn every_bare_import_is_in_the_import_map() {
+        let page = String::from_utf8_lossy(embedded::file("index.html").unwrap());
+        let map = &page[page.find("\"imports\"").unwrap()..];
+        let map = &map[..map.find("</script>").unwrap()];
+        let mut bare = Vec::new();
+        for (path, bytes) in embedded::FILES {
+            if !path.ends_with(".js") || path.starts_with("vendor/") {
+                continue;
+            }
+            let text = String::from_utf8_lossy(bytes);
+            for line in text.lines().map(str::trim) {
+                let Some(from) = line.strip_prefix("} from '").or_else(|| {
+                    line.starts_with("import ")
+                        .then(|| line.split(" from '").nth(1))
+                        .flatten()
+                }) else {
+                    continue;
+                };
+                let name = from.split('\'').next().unwrap_or("");
+                if name.starts_with('.') {
+                    continue;
+                }
+                bare.push(name.to_string());
+                let mapped = map.contains(&format!("\"{name}\""))
+                    || map
+                        .split('"')
+                        .any(|k| k.ends_with('/') && !k.starts_with('.') && name.starts_with(k));
+                assert!(mapped, "{path} imports '{name}', not in the import map");
+            }
+        }
+        for name in ["three", "aobake-three", "aobake-contract"] {
+            assert!(bare.iter().any(|b| b == name), "{name}: {bare:?}");
+        }
     }
 }

@@ -61,11 +61,16 @@ test('the built-in Babylon.js page loads the model too, and the bundle arrives g
 
 test('the built-in files are this checkout\'s, and nothing else is served', async () => {
   const base = new URL(server.url).origin;
-  for (const f of ['viewer.js', 'aobake-lightmap.js', 'bar.js', 'babylon-viewer.js', 'compare.js', 'aobake-sh.js', 'vendor/three/build/three.module.js']) {
+  for (const f of ['viewer.js', 'bar.js', 'babylon-viewer.js', 'compare.js', 'vendor/three/build/three.module.js']) {
     const got = Buffer.from(await (await fetch(`${base}/${f}`)).arrayBuffer());
     assert.ok(got.equals(readFileSync(join(viewerDir, f))), `${f} differs from viewer/${f}`);
   }
-  for (const f of ['package.json', '../Cargo.toml', 'node_modules/three/package.json', 'test/harness.mjs']) {
+  // The packages the page imports, served where its import map names them.
+  for (const f of ['packages/aobake-three/aobake-lightmap.js', 'packages/aobake-contract/index.js', 'packages/aobake-contract/sh.js']) {
+    const got = Buffer.from(await (await fetch(`${base}/${f}`)).arrayBuffer());
+    assert.ok(got.equals(readFileSync(join(repoDir, f))), `${f} differs from the checkout's`);
+  }
+  for (const f of ['package.json', '../Cargo.toml', 'node_modules/three/package.json', 'test/harness.mjs', 'packages/aobake-three/package.json', 'packages/test/pack.test.mjs']) {
     assert.equal((await fetch(`${base}/${f}`)).status, 404, f);
   }
 });

@@ -2,8 +2,8 @@
 // Chromium, headless, software WebGL), against expectations computed here
 // from the decoded textures, independently of the shader.
 //
-// Run: npm test --prefix viewer (after `cargo build --release` and
-// `npm ci --prefix viewer`); `cargo test` runs it through tests/viewer.rs.
+// Run: npm run test:viewer (after `cargo build --release` and `npm ci` in
+// the repository's root); `cargo test` runs it through tests/viewer.rs.
 
 import { after, before, describe, test } from 'node:test';
 import assert from 'node:assert/strict';
@@ -446,7 +446,8 @@ test('aobake view serves the page and the file, nothing outside the viewer', asy
   const base = new URL(server.url).origin;
   assert.equal((await fetch(`${base}/../Cargo.toml`)).status, 404);
   assert.equal((await fetch(`${base}/%2e%2e/Cargo.toml`)).status, 404);
-  assert.equal((await fetch(`${base}/aobake-lightmap.js`)).status, 200);
+  assert.equal((await fetch(`${base}/packages/aobake-three/aobake-lightmap.js`)).status, 200);
+  assert.equal((await fetch(`${base}/packages/aobake-three/package.json`)).status, 404);
   await page.close();
 });
 

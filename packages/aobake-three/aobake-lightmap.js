@@ -8,7 +8,7 @@
 // c_i = shScale[i] * channel_i + shOffset[i] read from the three SH
 // textures on the extension's UV set.
 //
-// Conventions (checked by viewer/test/viewer.test.mjs):
+// Conventions (checked by the repository's viewer/test/viewer.test.mjs):
 // - basis and order: the contract's real SH, (l,m) = (0,0),(1,-1),(1,0),(1,1),
 //   (2,-2),(2,-1),(2,0),(2,1),(2,2), no Condon-Shortley phase, is the basis
 //   and order of three's SphericalHarmonics3 (getBasisAt) and LightProbe:
@@ -62,9 +62,15 @@ import {
   RGBAFormat,
   Vector3,
 } from 'three';
-import { EXTENSION, extensionProblem, filterOf } from './aobake-extension.js';
-import { radianceProduct } from './aobake-sh.js';
-import { BICUBIC_GLSL, CONE_GLSL, VISIBILITY_GLSL } from './aobake-glsl.js';
+import {
+  BICUBIC_GLSL,
+  CONE_GLSL,
+  EXTENSION,
+  VISIBILITY_GLSL,
+  extensionProblem,
+  filterOf,
+  radianceProduct,
+} from 'aobake-contract';
 
 export { EXTENSION, extensionProblem, filterOf };
 
@@ -84,7 +90,7 @@ export const DEBUG = {
   specularOcclusion: 8,
 };
 
-export { basis16, gaunt, radianceProduct } from './aobake-sh.js';
+export { basis16, gaunt, radianceProduct } from 'aobake-contract';
 
 /**
  * What the plugin found and the uniforms every patched material shares:

@@ -1,5 +1,5 @@
 // The AOBAKE_lightmap extension object as both engine importers read it
-// (viewer/aobake-lightmap.js for three.js, babylon/aobake-lightmap.js for
+// (the packages aobake-three for three.js and aobake-babylon for
 // Babylon.js): the name, and why an object cannot be used. No engine
 // import, so either importer can use it.
 //

@@ -1,5 +1,5 @@
 // The visibility layer's GLSL, the same in both engine importers
-// (viewer/aobake-lightmap.js for three.js, babylon/glsl.js for Babylon.js):
+// (the packages aobake-three and aobake-babylon):
 // the contract's formulas for the normal-mapped diffuse and the specular
 // occlusion. No engine import.
 //

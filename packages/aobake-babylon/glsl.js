@@ -1,5 +1,5 @@
 // The GLSL of the bake in Babylon.js's PBR fragment shader (the contract's
-// formulas, as viewer/aobake-lightmap.js has them for three.js).
+// formulas, as the aobake-three plugin has them for three.js).
 //
 // In (declared by the plugin in aobake-lightmap.js): the layer's textures
 // aobakeV0..3 with ranges aobakeVScale0..3 / aobakeVOffset0..3,
@@ -9,11 +9,11 @@
 // Babylon-world normals and directions into the bake's frame. Out:
 // aobakeNormalToBake, aobakeDirectionToBake; with the layer (LAYER_GLSL)
 // its v_i at the fragment and the shared formulas
-// (../viewer/aobake-glsl.js: aobakeMappedIrradiance,
+// (aobake-contract's glsl.js: aobakeMappedIrradiance,
 // aobakeSpecularOcclusion); without it (FALLBACK_GLSL) the contract's
 // fallback specular occlusion, the cone of the AO around the bent normal
 // (aobakeSpecularOcclusion with the same arguments).
-import { CONE_GLSL, VISIBILITY_GLSL } from '../viewer/aobake-glsl.js';
+import { CONE_GLSL, VISIBILITY_GLSL } from 'aobake-contract';
 
 export const FRAME_GLSL = `
 // Babylon-world normal and direction into the bake's frame.

@@ -12,7 +12,7 @@
 // read bilinearly on the extension's UV set; the baked AO sits on the
 // material's ambient (occlusion) slot, where every Babylon material shows it.
 //
-// Conventions (checked by babylon/test/babylon.test.mjs):
+// Conventions (checked by the repository's babylon/test/babylon.test.mjs):
 // - basis and order: the contract's real SH, (l,m) = (0,0),(1,-1),(1,0),(1,1),
 //   (2,-2),(2,-1),(2,0),(2,1),(2,2), no Condon-Shortley phase; Babylon's
 //   SphericalHarmonics carry the phase (l1_1, l11, l2_1, l21 negated), so its
@@ -40,14 +40,14 @@
 // of the AO around the bent normal from c (as in the three.js plugin; in
 // place of Babylon's radiance occlusion).
 //
-// Imports: @babylonjs/core and @babylonjs/loaders (pinned in package.json),
-// this folder's glsl.js (the bake's GLSL), and the engine-neutral modules
-// it shares with the three.js plugin: ../viewer/aobake-extension.js (the
-// extension's name and checks), ../viewer/aobake-sh.js (basis, quadrature,
-// Gamma, P) and, through glsl.js, ../viewer/aobake-glsl.js (the formulas).
+// Imports: @babylonjs/core and @babylonjs/loaders (peer dependencies),
+// this package's glsl.js (the bake's GLSL in Babylon's shader), and the
+// engine-neutral contract it shares with the three.js plugin, the package
+// aobake-contract (the extension's name and checks; the SH basis,
+// quadrature, Gamma and P; and, through glsl.js, the shared formulas).
 //
 // Use:
-//   import { registerAobakeLightmap, AobakeLightmaps } from './aobake-lightmap.js';
+//   import { registerAobakeLightmap, AobakeLightmaps } from 'aobake-babylon';
 //   const lightmaps = new AobakeLightmaps();
 //   registerAobakeLightmap(lightmaps);
 //   await SceneLoader.AppendAsync(url, undefined, scene);   // or ImportMeshAsync
@@ -61,9 +61,15 @@ import { RawTexture } from '@babylonjs/core/Materials/Textures/rawTexture.js';
 import { RenderTargetTexture } from '@babylonjs/core/Materials/Textures/renderTargetTexture.js';
 import { Color4 } from '@babylonjs/core/Maths/math.color.js';
 import { Constants } from '@babylonjs/core/Engines/constants.js';
-import { EXTENSION, extensionProblem as contractProblem, filterOf } from '../viewer/aobake-extension.js';
-import { BICUBIC_GLSL } from '../viewer/aobake-glsl.js';
-import { basis9, project, radianceProduct } from '../viewer/aobake-sh.js';
+import {
+  BICUBIC_GLSL,
+  EXTENSION,
+  basis9,
+  extensionProblem as contractProblem,
+  filterOf,
+  project,
+  radianceProduct,
+} from 'aobake-contract';
 import { FALLBACK_GLSL, FRAME_GLSL, LAYER_GLSL } from './glsl.js';
 
 export { EXTENSION };

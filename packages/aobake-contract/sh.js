@@ -1,5 +1,5 @@
-// The SH arithmetic both engine importers share (viewer/aobake-lightmap.js
-// for three.js, babylon/aobake-lightmap.js for Babylon.js): the contract's
+// The SH arithmetic both engine importers share (the packages aobake-three
+// for three.js and aobake-babylon for Babylon.js): the contract's
 // real SH basis, quadrature on the sphere, the triple product Gamma and the
 // per-environment matrix P of the visibility layer. No engine import.
 //
