@@ -28,7 +28,7 @@ fn probe(
     let level =
         aobake::job::Level::new(&sc, &s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
             .unwrap();
-    let p = level.page(0, &sc, &s, &mut StageTimer::new()).unwrap();
+    let p = level.page(0, &sc, &mut StageTimer::new()).unwrap();
     let reference = p
         .bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
         .unwrap()
@@ -146,7 +146,7 @@ fn cells_main() {
     let level =
         aobake::job::Level::new(&sc, &s, &aobake::RunOptions::QUIET, &mut StageTimer::new())
             .unwrap();
-    let p = level.page(0, &sc, &s, &mut StageTimer::new()).unwrap();
+    let p = level.page(0, &sc, &mut StageTimer::new()).unwrap();
     let space = &p.level.geometry.space;
     let world = |i: usize| space.to_world(p.receivers.position[i]);
     let k_env: u32 = std::env::var("K")

@@ -22,7 +22,7 @@ fn main() {
     let mut timer = StageTimer::new();
     let level = aobake::job::Level::new(&scene, &s, &run, &mut timer).expect("level");
     assert_eq!(level.page_count(), 1, "one page only");
-    let page = level.page(0, &scene, &s, &mut timer).expect("page");
+    let page = level.page(0, &scene, &mut timer).expect("page");
     let passes = page.bake(&s, &run, &mut timer).expect("bake");
     let out = page.finish(&passes, &s, &run, &mut timer).expect("finish");
     let probe = page.engine_probe(count, rays, 0x5eed, false);

@@ -29,7 +29,7 @@ fn main() {
     )
     .expect("prepare");
     let p = level
-        .page(0, &scene, &s, &mut StageTimer::new())
+        .page(0, &scene, &mut StageTimer::new())
         .expect("prepare");
     let passes = p
         .bake(&s, &aobake::RunOptions::QUIET, &mut StageTimer::new())

@@ -32,7 +32,7 @@ fn main() {
     )
     .expect("prepare");
     let p = level
-        .page(0, &scene, &base, &mut StageTimer::new())
+        .page(0, &scene, &mut StageTimer::new())
         .expect("prepare");
     let passes = p
         .bake(&base, &aobake::RunOptions::QUIET, &mut StageTimer::new())

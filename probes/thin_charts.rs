@@ -124,9 +124,7 @@ fn main() {
     widening_cost(path, resolution, min_width, &charts);
     // Which texel centres lie inside a triangle: the rasterizer's, as the
     // engine view classifies.
-    let page = level
-        .page(0, &scene, &s, &mut StageTimer::new())
-        .expect("page");
+    let page = level.page(0, &scene, &mut StageTimer::new()).expect("page");
     let inside = page.receivers.centers_inside();
     let total: f64 = tris.iter().map(|t| t.2).sum();
     let mut rng = 0x9e3779b97f4a7c15u64;

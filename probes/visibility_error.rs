@@ -111,7 +111,7 @@ fn main() {
     let mut timer = StageTimer::new();
     let level = aobake::job::Level::new(&scene, &s, &aobake::RunOptions::QUIET, &mut timer)
         .expect("prepare");
-    let p = level.page(0, &scene, &s, &mut timer).expect("prepare");
+    let p = level.page(0, &scene, &mut timer).expect("prepare");
     let passes = p
         .bake(&s, &aobake::RunOptions::QUIET, &mut timer)
         .expect("bake");

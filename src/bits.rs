@@ -1,6 +1,6 @@
 //! Bit helpers shared by the stages: a 64-bit mix and Morton codes.
 //!
-//! In: integers. Out: their mix ([`mix64`], for seeds and hashes; [`unit`]
+//! In: integers. Out: their mix ([`mix64`], for seeds and hashes; [`unit()`]
 //! as a number in [0, 1)) and
 //! interleaved bits ([`morton2`] for atlas texels, [`morton3`] for world
 //! cells).

@@ -27,7 +27,7 @@ pub struct Encoded {
 }
 
 /// The visibility layer's images: `png[k]` holds v_{4k}..v_{4k+3} in
-/// RGBA, v_i = scale[i] x channel_i + offset[i].
+/// RGBA, v_i = scale\[i\] x channel_i + offset\[i\].
 #[derive(Clone, Debug)]
 pub struct EncodedVisibility {
     pub png: Vec<Vec<u8>>,

@@ -36,7 +36,7 @@ pub enum Error {
     /// is the library's name for it (a field of `BakeSettings` or
     /// `ReportSettings`, such as `sparse_rays`); the
     /// command line shows its flag instead (`--sparse-rays`). `detail`
-    /// follows the name, separator included (see [`Error::option`]).
+    /// follows the name, separator included (see `Error::option`).
     #[error("invalid option: {setting}{detail}")]
     Option {
         setting: &'static str,

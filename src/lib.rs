@@ -2,13 +2,13 @@
 //! directional occlusion into lightmaps and writes them back into glTF.
 //!
 //! [`job`] runs the stages in order: [`gltf`] (load) -> [`atlas`] (unwrap,
-//! rasterize) and [`trace`] (BVH) -> [`bake`] (the methods) ->
+//! rasterize) and [`trace`] (BVH) -> `bake` (the methods) ->
 //! [`lightmap`] (dilate, spread, seams) -> [`encode`] -> [`gltf::write`].
 //! [`shard`] is the sharded bake's partial files; with the `cli` feature
 //! (the binary's, on by default), `report` is the `aobake report` sweep and
 //! `view` the relighting viewer's server. Beneath them,
 //! used by the stages and using none: [`geometry`], [`sample`], [`sh`],
-//! [`relight`], [`bits`], [`stage`], [`file`], [`error`].
+//! [`relight`], [`bits`], [`stage`], `file`, [`error`].
 //!
 //! Figures quoted in the code's comments (a scene's error or time behind
 //! a default or a departure from the paper) were measured in November

@@ -25,7 +25,7 @@ fn the_reference_at_surface_points_is_the_closed_form() {
     let run = RunOptions::QUIET;
     let mut timer = StageTimer::new();
     let level = Level::new(&sc, &s, &run, &mut timer).unwrap();
-    let page = level.page(0, &sc, &s, &mut timer).unwrap();
+    let page = level.page(0, &sc, &mut timer).unwrap();
     let tris = aobake::atlas::rasterize::surface_triangles(&level.geometry.receivers, &page.atlas);
     let points = engine_view::surface_points(&tris, page.atlas.width, page.atlas.height, 4000, 9);
     let reference =
@@ -82,7 +82,7 @@ fn a_bake_of_a_uniform_answer_shows_no_error_anywhere_and_spoiled_borders_show()
             *a = 0.0;
         }
     }
-    let page = level.page(0, &sc, &s, &mut StageTimer::new()).unwrap();
+    let page = level.page(0, &sc, &mut StageTimer::new()).unwrap();
     let tris = aobake::atlas::rasterize::surface_triangles(&level.geometry.receivers, &page.atlas);
     let points = engine_view::surface_points(&tris, lm.width, lm.height, 6000, 5);
     let reference =

@@ -136,7 +136,7 @@ fn the_adaptive_pre_pass_finds_the_validity_stages_inside_texels() {
         };
         let sc = scene(g);
         let level = Level::new(&sc, &mc, &run, &mut StageTimer::new()).unwrap();
-        let p = level.page(0, &sc, &mc, &mut StageTimer::new()).unwrap();
+        let p = level.page(0, &sc, &mut StageTimer::new()).unwrap();
         let expected = p.inside.clone().unwrap();
         let count = expected.iter().filter(|&&x| x).count();
         assert!(count > 20 && count < expected.len() / 2, "{count}");
@@ -162,7 +162,7 @@ fn the_adaptive_pre_pass_finds_the_validity_stages_inside_texels() {
         };
         let mut timer = StageTimer::new();
         let level = Level::new(&sc, &s, &run, &mut timer).unwrap();
-        let pa = level.page(0, &sc, &s, &mut timer).unwrap();
+        let pa = level.page(0, &sc, &mut timer).unwrap();
         assert!(pa.inside.is_none());
         assert!(timer.stages().iter().all(|st| st.stage != "validity"));
         let b = aobake::bake_scene(&scene(g), &s).unwrap();

@@ -29,7 +29,7 @@ fn read_both_ways(filter: Filter) -> (f64, f64) {
     .unwrap();
     let (receivers, encoded) = kept.unwrap();
     let lm = aobake::encode::decode(&encoded).unwrap();
-    let page = level.page(0, &sc, &s, &mut StageTimer::new()).unwrap();
+    let page = level.page(0, &sc, &mut StageTimer::new()).unwrap();
     let tris = aobake::atlas::rasterize::surface_triangles(&level.geometry.receivers, &page.atlas);
     let points = engine_view::surface_points(&tris, lm.width, lm.height, 8000, 3);
     let reference =

@@ -18,11 +18,11 @@ fn every_method_bakes_the_same_texels_in_world_and_texel_order() {
         };
         let run = aobake::RunOptions::QUIET;
         let level = Level::new(&scene, &s, &run, &mut StageTimer::new()).unwrap();
-        let world = level.page(0, &scene, &s, &mut StageTimer::new()).unwrap();
+        let world = level.page(0, &scene, &mut StageTimer::new()).unwrap();
         let n = world.receivers.len();
         // The pipeline's order is not the texel order (or this proves nothing).
         assert!(world.receivers.texel.windows(2).any(|w| w[0] > w[1]));
-        let mut by_texel = level.page(0, &scene, &s, &mut StageTimer::new()).unwrap();
+        let mut by_texel = level.page(0, &scene, &mut StageTimer::new()).unwrap();
         let mut order: Vec<u32> = (0..n as u32).collect();
         order.sort_by_key(|&i| by_texel.receivers.texel[i as usize]);
         by_texel.receivers = by_texel.receivers.permuted(&order);

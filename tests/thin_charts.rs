@@ -69,7 +69,7 @@ fn chart_of(sc: aobake::gltf::Scene, min_chart_width: f32) -> (f32, f64) {
     };
     let mut timer = StageTimer::new();
     let level = Level::new(&sc, &s, &RunOptions::QUIET, &mut timer).unwrap();
-    let page = level.page(0, &sc, &s, &mut timer).unwrap();
+    let page = level.page(0, &sc, &mut timer).unwrap();
     let (w, h) = (page.atlas.width, page.atlas.height);
     let strip = &page.atlas.meshes[0];
     let (lo, hi) = strip

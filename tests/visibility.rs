@@ -162,7 +162,7 @@ fn the_baked_layer_relights_tilted_normals_like_brute_force_at_the_texel() {
     )
     .unwrap();
     let prepared = level_prepared
-        .page(0, &sc, &s, &mut aobake::stage::StageTimer::new())
+        .page(0, &sc, &mut aobake::stage::StageTimer::new())
         .unwrap();
     let (rc, tracer) = (&b.receivers, &prepared.level.tracer);
     assert_eq!(rc.texel, prepared.receivers.texel);

@@ -5,7 +5,7 @@
 //! [`Receivers`] (one point per covered texel, the paper's receivers).
 //!
 //! - [`unwrap`](mod@unwrap): charts and packing (`uvunwrap`), or an
-//!   existing UV set; [`pages`] crops the last page;
+//!   existing UV set; `pages` crops the last page;
 //! - [`rasterize`](mod@rasterize): covered texels into receivers,
 //!   conservative at chart edges;
 //! - [`order`]: the receivers in world-space Morton order, for the tracing

@@ -1,6 +1,6 @@
 //! Order: the receivers in world-space Morton order of their positions.
 //!
-//! In: [`Receivers`] (from [`super::rasterize`], in texel order). Out: the
+//! In: [`Receivers`] (from `super::rasterize`, in texel order). Out: the
 //! same receivers permuted so that receivers near each other in the scene
 //! are near each other in the list.
 //!

@@ -1,6 +1,6 @@
 //! Bake: per-receiver AO and SH from rays, by one of the methods.
 //!
-//! In: [`Receivers`] (from [`crate::atlas`]), a [`Tracer`], [`BakeParams`]
+//! In: [`Receivers`] (from [`crate::atlas`]), a `Tracer`, [`BakeParams`]
 //! and the method's own options. Out: a [`Bake`], the result every method
 //! produces: per receiver AO = (1/pi) Int V max(0, n.w) dw and the 9 SH
 //! coefficients (1/pi) Int V max(0, n.w) Y_i(w) dw.
@@ -10,7 +10,7 @@
 //!   integrated values (the default);
 //! - [`sheared`]: the sheared filter of Egan et al. 2011 (`--method
 //!   sheared`), sparse rays shared between neighbouring receivers;
-//! - [`visibility`]: the visibility layer v (16 SH coefficients of V
+//! - `visibility`: the visibility layer v (16 SH coefficients of V
 //!   itself, uniform rays), for `mc` and (filtered) `adaptive`;
 //! - [`validity`]: which receivers lie inside or behind geometry (their
 //!   texels are filled, not shown): a stage before Monte Carlo and the
@@ -42,7 +42,7 @@ pub struct Bake {
     pub sh: Vec<[f32; SH_COUNT]>,
     /// Rays cast (the visibility layer's not counted).
     pub rays: u64,
-    /// The visibility layer, when asked for ([`visibility`]).
+    /// The visibility layer, when asked for (`visibility`).
     pub visibility: Option<visibility::Visibility>,
 }
 

@@ -7,7 +7,7 @@
 //! floor under a box resting on it, geometry intersecting geometry) are
 //! never seen, but baked they are black and bilinear filtering bleeds that
 //! into visible texels; the output fills them from their nearest valid
-//! texel instead (see [`crate::atlas::dilate`]).
+//! texel instead (see `crate::atlas::dilate`).
 //!
 //! Each receiver casts up to [`VALIDITY_RAYS`] closest-hit rays, the
 //! first of the bake's own sequence (seed and stream of the bake, so the

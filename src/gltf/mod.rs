@@ -10,12 +10,12 @@
 //!
 //! - [`container`]: GLB chunks or JSON, buffers (BIN, `data:`, files), and
 //!   GLB serialization;
-//! - [`decompress`]: Draco and meshopt geometry decoded into plain views;
+//! - `decompress`: Draco and meshopt geometry decoded into plain views;
 //! - [`accessor`]: typed reads (strides, sparse, normalized, quantized);
 //! - [`scene`]: nodes, transforms, primitives, instancing, bake space;
 //! - [`write`](mod@write): the document edited as `serde_json::Value`,
 //!   images appended to BIN;
-//! - [`uris`]: URIs relocated to the output's directory;
+//! - `uris`: URIs relocated to the output's directory;
 //! - `append`: accessors and bufferViews added to the output's BIN.
 
 pub mod accessor;

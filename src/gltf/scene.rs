@@ -147,7 +147,7 @@ fn triangle_list(mode: u64, idx: &[u32]) -> Vec<u32> {
 
 impl Scene {
     /// Decodes geometry and walks the default scene.
-    /// Draco and meshopt geometry is decoded first ([`decompress`]), so the
+    /// Draco and meshopt geometry is decoded first (`decompress`), so the
     /// scene and its write-back see plain accessors.
     pub fn from_document(mut doc: Document) -> Result<Scene> {
         let decoded = decompress::decompress(&mut doc)?;

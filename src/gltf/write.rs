@@ -17,7 +17,7 @@
 //!   sampler, are appended; the root gains `extensions.AOBAKE_lightmap`
 //!   and the name in `extensionsUsed`;
 //! - relative URIs of external buffers and images are rewritten to resolve
-//!   from the output's directory ([`super::uris`]).
+//!   from the output's directory (`super::uris`).
 
 use super::accessor::{self, array};
 use super::append::{Bin, f32_accessor, gather_accessor, index_accessor, insert_bin_buffer, push};

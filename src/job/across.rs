@@ -11,10 +11,11 @@
 //! ([`crate::lightmap::seams::anchor`]):
 //! a page cannot see the other's texels while it is baked (pages are baked
 //! one at a time, shards on other machines), and each side meets the
-//! target only as well as its own constraints let it (Sponza
-//! `--texel-density 28 --page-size 1024`: jump mean 0.0106 across pages
-//! against 0.0040 within one). Once every page is encoded, in one process
-//! or in `aobake merge`, this pass solves the two sides together: the
+//! target only as well as its own constraints let it, so the seams across
+//! pages stayed wider than those within one
+//! (`docs/measurements/constants.md`, the pass across pages). Once every
+//! page is encoded, in one process or in `aobake merge`, this pass solves
+//! the two sides together: the
 //! within-page stitch's two-sided rows at `POINTS_PER_TEXEL` points per
 //! texel of the longer side, over the non-interior texels under their
 //! lookups on both pages at once, each texel kept near its written value

@@ -41,12 +41,21 @@ pub struct Level {
     pub visibility_meshes: Vec<bool>,
     /// Smooth seams whose sides lie on two pages (`--seams stitch`).
     pub cross_seams: Vec<CrossSeam>,
+    /// The settings the level was built with (validated): its pages are
+    /// rasterized and tested for receivers inside geometry by them.
+    settings: BakeSettings,
     /// Per page, the bake-space area of its triangles, computed when first
     /// asked for ([`Level::page_surface_areas`]).
     surface_areas: std::sync::OnceLock<Vec<f64>>,
 }
 
 impl Level {
+    /// The settings the level was built with ([`Level::new`] validated
+    /// them).
+    pub fn settings(&self) -> &BakeSettings {
+        &self.settings
+    }
+
     /// Whether the bake makes the visibility layer.
     pub fn bakes_visibility(&self) -> bool {
         self.visibility_meshes.iter().any(|&v| v)
@@ -64,7 +73,8 @@ pub fn page_seed(seed: u64, page: u32) -> u64 {
 }
 
 impl Level {
-    /// Unwraps into pages and builds the BVH. Validates `s` first.
+    /// Unwraps into pages and builds the BVH. Validates `s` first and
+    /// keeps them for the pages.
     pub fn new(
         scene: &Scene,
         s: &BakeSettings,
@@ -72,6 +82,18 @@ impl Level {
         timer: &mut StageTimer,
     ) -> Result<Level> {
         s.validate()?;
+        Level::build(scene, s, run, timer)
+    }
+
+    /// [`Level::new`] for settings validated already: [`crate::bake()`] and
+    /// [`crate::job::bake_shard`] validate before they read the input, so a bad
+    /// option fails before any I/O, and once.
+    pub(crate) fn build(
+        scene: &Scene,
+        s: &BakeSettings,
+        run: &RunOptions,
+        timer: &mut StageTimer,
+    ) -> Result<Level> {
         if scene.baked_count() == 0 {
             return Err(Error::Empty(if scene.instances.is_empty() {
                 "the default scene has no triangle primitive (points and lines are not baked)"
@@ -207,6 +229,7 @@ impl Level {
             max_distance,
             visibility_meshes,
             cross_seams,
+            settings: s.clone(),
             surface_areas: std::sync::OnceLock::new(),
         })
     }

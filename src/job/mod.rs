@@ -25,9 +25,9 @@
 //! - [`settings`]: what a bake is and how a run goes;
 //! - [`across`]: the seams across pages, solved together on the encoded
 //!   images before the write;
-//! - [`level`]: what every page shares ([`Level`]) and one page ([`Page`]);
-//! - [`page`](mod@page): a page's passes and output, and the write-back;
-//! - [`report`](mod@report): the `--report` JSON;
+//! - `level`: what every page shares ([`Level`]) and one page ([`Page`]);
+//! - `page`: a page's passes and output, and the write-back;
+//! - `report`: the `--report` JSON;
 //! - [`shard`](mod@shard): sharded bakes and their merge.
 
 pub mod across;
@@ -140,10 +140,10 @@ impl<'a> Job<'a> {
         pages: &[u32],
         keep: &mut dyn FnMut(Page<'l>, BakePasses, PageOutput),
     ) -> Result<Vec<PageDone>> {
-        let (s, run) = (self.settings, self.run);
+        let (s, run) = (level.settings(), self.run);
         let mut done = Vec::with_capacity(pages.len());
         for &k in pages {
-            let page = level.page(k, self.scene, s, &mut self.timer)?;
+            let page = level.page(k, self.scene, &mut self.timer)?;
             let passes = page.bake(s, run, &mut self.timer)?;
             let out = page.finish(&passes, s, run, &mut self.timer)?;
             done.push(PageDone::new(
@@ -271,7 +271,7 @@ pub fn bake(input: &Path, output: &Path, s: &BakeSettings, run: &RunOptions) -> 
     let scene = gltf::load(input)?;
     timer.lap("load");
     let mut job = Job::new(&scene, s, run, timer);
-    let level = job.level()?;
+    let level = Level::build(&scene, s, run, &mut job.timer)?;
     let all: Vec<u32> = (0..level.page_count()).collect();
     let done = job.pages(&level, &all, &mut |_, _, _| {})?;
     let encoded: Vec<&Encoded> = done.iter().map(|d| &d.encoded).collect();

@@ -45,15 +45,10 @@ pub struct Page<'a> {
 }
 
 impl Level {
-    /// Rasterizes page `page` and finds its receivers inside geometry.
-    pub fn page(
-        &self,
-        page: u32,
-        scene: &Scene,
-        s: &BakeSettings,
-        timer: &mut StageTimer,
-    ) -> Result<Page<'_>> {
-        let geometry = &self.geometry;
+    /// Rasterizes page `page` and finds its receivers inside geometry, by
+    /// the level's settings (`scene`: the level's, for names in errors).
+    pub fn page(&self, page: u32, scene: &Scene, timer: &mut StageTimer) -> Result<Page<'_>> {
+        let (geometry, s) = (&self.geometry, &self.settings());
         let atlas = self.atlas.page(page);
         let receivers = atlas::rasterize(&geometry.receivers, &atlas);
         if let (UvSource::Existing(set), Some((a, b))) = (s.uv, receivers.first_overlap) {
@@ -151,8 +146,10 @@ fn page_dir(dir: &Path, page: u32) -> PathBuf {
 }
 
 impl Page<'_> {
-    /// Runs the method's passes over the page's receivers (`s` validated,
-    /// as by [`Level::new`]).
+    /// Runs the method's passes over the page's receivers under `s`: the
+    /// level's settings ([`Level::settings`], as a job bakes), or the same
+    /// with another method or budget (validated), as `aobake report`'s
+    /// sweep bakes one page many times.
     pub fn bake(
         &self,
         s: &BakeSettings,

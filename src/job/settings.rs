@@ -289,8 +289,10 @@ impl Default for RunOptions {
 }
 
 impl BakeSettings {
-    /// Checks every setting that can be checked without the scene: the
-    /// job calls it before any stage, so a bad option fails at once.
+    /// Checks every setting that can be checked without the scene, once
+    /// per bake: [`crate::bake()`] and [`crate::job::bake_shard`] call it before
+    /// they read the input, so a bad option fails at once;
+    /// [`crate::job::Level::new`] calls it for a level built directly.
     pub fn validate(&self) -> Result<()> {
         // Refused whichever method reads it.
         if self.rays == 0 {

@@ -14,7 +14,7 @@
 //! writes every page's images. A shard's fingerprint holds the
 //! [`BakeSettings`] as JSON: exactly what decides the output's bytes.
 
-use super::{Job, Report, check_output};
+use super::{Job, Level, Report, check_output};
 use crate::encode::Encoded;
 use crate::error::{Error, Result};
 use crate::file;
@@ -48,7 +48,7 @@ pub fn bake_shard(
     let (bytes, scene) = gltf::load_with_bytes(input)?;
     timer.lap("load");
     let mut job = Job::new(&scene, s, run, timer);
-    let level = job.level()?;
+    let level = Level::build(&scene, s, run, &mut job.timer)?;
     let costs: Vec<f64> = (level.atlas.page_areas().into_iter())
         .zip(level.atlas.page_triangles())
         .map(|(t, n)| page_cost(t, n))

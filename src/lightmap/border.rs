@@ -286,23 +286,17 @@ pub fn points(
 /// the grid has one, each a full fit row. A chart's acute tip or a strip
 /// thinner than the grid spacing gets a grid point only here and there, and
 /// its few rows lose to the texels' data terms, so its lookups keep the
-/// edge receivers' values. Sponza 1024, 1,000,000 engine-view points (342
-/// slivers): sliver AO RMSE 0.0595 -> 0.0522 (paired bootstrap 0.80-0.96x),
-/// border 0.0343 -> 0.0342, for 6.6% more fit points and a seam jump of
-/// 0.0028 -> 0.0031; at 8 the same (0.0741 against 0.0754 at 200,000
-/// points) for 30% more points; at 4 with each row weighted by its share of
-/// the grid cell (1/16), worse than none (0.107 against 0.0824).
+/// edge receivers' values. Full rows matter: weighted by their share of
+/// the cell they did worse than none; 8 per edge does no better than 4
+/// for far more points (`docs/measurements/constants.md`, SLIVER_SUB).
 pub const SLIVER_SUB: u32 = 4;
 
 const SLIVER_SEED: u64 = 0x51f1_7e55;
 
 /// A seam row's scale with the border fit on: twice the seams-only weight
-/// against the data term, so the two sides' noisy fits still meet
-/// (Sponza 1024, seam AO jump mean / p95 with the fit's rows at half a
-/// seam row's weight: seam scale 1, 0.0112 / 0.056; 2 with the fit's rows
-/// at a quarter, 0.0040 / 0.0195). Cross-page anchors are seam rows and
-/// scale alike (at 1, `tests/pages.rs`'s cross-page level closed to 0.46x
-/// of its open jump; it asks 0.4x).
+/// against the data term, so the two sides' noisy fits still meet.
+/// Cross-page anchors are seam rows and scale alike
+/// (`docs/measurements/constants.md`, SEAM_SCALE).
 pub const SEAM_SCALE: f64 = 2.0;
 
 /// The anchors of a page's border band: [`points`] on `tris` traced with

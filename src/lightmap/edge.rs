@@ -24,17 +24,16 @@
 //! where the signal is singular: AO dips steeply into the corner, and the
 //! value at the very edge is not what the area around it shows. Such a
 //! receiver gets a row only where its AO agrees with the border fit's
-//! traced points near it ([`agrees`]). Sponza 1024 (200,000 engine-view
-//! points), AO all / border: rows at every edge receiver 0.0133 / 0.0343
-//! -> 0.0143 / 0.0396; at the widened ones and the agreeing contact ones,
-//! 0.0133 / 0.0341. Without the adaptive filter's widths (`--method mc`,
-//! `sheared`) every edge receiver is judged as a contact one.
+//! traced points near it ([`agrees`]): rows at every edge receiver made
+//! the border worse (`docs/measurements/constants.md`, edge rows). Without
+//! the adaptive filter's widths (`--method mc`, `sheared`) every edge
+//! receiver is judged as a contact one.
 //!
 //! Texels a seam's rows read keep their data term and get no row: there
 //! the two sides' edge receivers are baked independently, and the seam's
-//! rows, not either side's value, decide where they meet (flight helmet
-//! 1024 with rows on seams too: seam AO jump mean / p95 0.0036 / 0.0132 ->
-//! 0.0048 / 0.0197).
+//! rows, not either side's value, decide where they meet (rows there too
+//! widened the seams' jumps: `docs/measurements/constants.md`, edge rows
+//! on seams).
 
 use super::filter::Filter;
 use super::seams::Anchor;
@@ -47,9 +46,8 @@ use glam::Vec2;
 use rayon::prelude::*;
 
 /// An edge row's weight, as the border fit's rows'
-/// ([`super::border::FIT_WEIGHT`]). Flight helmet 1024, 100,000
-/// engine-view points, relight all / interior: 0.5, 1.193x; 0.7, 1.192x;
-/// 1.0, 1.194x (seam jump mean 0.0047, 0.0048, 0.0050 with rows on seams).
+/// ([`super::border::FIT_WEIGHT`]); the engine view is flat in it
+/// between 0.5 and 1 (`docs/measurements/constants.md`, EDGE_WEIGHT).
 pub(crate) const EDGE_WEIGHT: f32 = 0.7;
 
 /// The data term's weight of a texel that has an edge row (1 for the
@@ -170,10 +168,9 @@ pub fn rows(
 pub const CONTACT_REACH: f32 = 0.75;
 
 /// Largest |AO - the mean AO of the fit's points near it| of a contact
-/// receiver that gets a row. Flight helmet 1024 / Sponza 1024 (relight
-/// all / interior; AO border): no contact rows 1.2076x / 0.0341; at 0.05
-/// 1.2016x / 0.0340; 0.1, 1.1991x / 0.0341; 0.15, 1.1982x / 0.0347; every
-/// contact receiver, 1.1967x / 0.0396.
+/// receiver that gets a row: the largest that leaves the border where no
+/// contact rows leave it, while most of the rows' gain elsewhere stays
+/// (`docs/measurements/constants.md`, CONTACT_AGREEMENT).
 pub const CONTACT_AGREEMENT: f32 = 0.1;
 
 /// Whether a contact receiver's AO `ao` is what the area around it shows:

@@ -11,7 +11,7 @@
 //!
 //! 1. [`dilate`]: the receiver each texel shows (gutters, and texels inside
 //!    geometry filled from their nearest valid receiver);
-//! 2. [`spread`](mod@spread): receiver results over the page through that
+//! 2. `spread`: receiver results over the page through that
 //!    map;
 //! 3. [`border`]: surface points of the border band's bilinear cells,
 //!    traced, for the texels there to be fitted to (`--border fit`), and
@@ -50,13 +50,13 @@ use rayon::prelude::*;
 use seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode, SeamReport};
 use serde::Serialize;
 
-/// A bicubic page's centre row's weight ([`centre_rows`]), relative to a
+/// A bicubic page's centre row's weight (`centre_rows`), relative to a
 /// seam row's: one row per texel, as heavy per texel as the border fit's
 /// [`GRID`]^2 points of [`border::FIT_WEIGHT`]. Every texel's data term
 /// (its coefficient kept near its baked value) weighs 1 as on a bilinear
-/// page: a tenth of it measured the same on the flight helmet (AO all
-/// 0.0216 against 0.0215) in 2.3x the solve's time, and a centre weight of
-/// 2 the same (0.0216).
+/// page: a tenth of it measured the same in more than twice the solve's
+/// time, as did a centre weight of 2 (`docs/measurements/constants.md`,
+/// CENTRE_WEIGHT).
 ///
 /// [`GRID`]: border::GRID
 pub const CENTRE_WEIGHT: f32 = 1.0;

@@ -6,11 +6,11 @@
 //! settings and the filter's brute-force fraction map.
 //!
 //! - `mod.rs`: the sweep and the equal-error comparison;
-//! - [`budget`]: the runs (`--budgets`);
-//! - [`figures`]: what a sweep measured ([`SweepReport`]) and is told;
+//! - `budget`: the runs (`--budgets`);
+//! - `figures`: what a sweep measured ([`SweepReport`]) and is told;
 //! - [`metrics`]: error statistics and log-log interpolation;
-//! - [`plot`]: log-log curves of plain points (plotters);
-//! - [`files`]: the error maps and the files of a report directory;
+//! - `plot`: log-log curves of plain points (plotters);
+//! - `files`: the error maps and the files of a report directory;
 //! - [`markdown`](mod@markdown): `report.md`.
 //!
 //! The scene is unwrapped, rasterized and its BVH built once (one
@@ -104,7 +104,7 @@ pub fn sweep(
         ..base.clone()
     };
     let level = Level::new(scene, &with_validity, &run, &mut timer)?;
-    let prepared = level.page(0, scene, &with_validity, &mut timer)?;
+    let prepared = level.page(0, scene, &mut timer)?;
     let inside: &[bool] = prepared.inside.as_deref().unwrap_or_default();
     let texels = prepared.receivers.len();
 
@@ -332,7 +332,7 @@ fn stability(
         };
         let mut timer = StageTimer::new();
         let level = Level::new(&scaled, &ss, &run, &mut timer)?;
-        let p = level.page(0, &scaled, &ss, &mut timer)?;
+        let p = level.page(0, &scaled, &mut timer)?;
         if p.receivers.texel != prepared.receivers.texel {
             return Err(Error::Limit(format!(
                 "the scene scaled by {scale:e} unwrapped to different texels; the stability table needs the same atlas"

@@ -156,7 +156,7 @@ impl Tracer {
     }
 
     /// Whether a receiver sees past `t_max` along unit `dir`, from `origin`
-    /// (already lifted by [`offset_origin`]) on a surface with unit
+    /// (already lifted by `offset_origin`) on a surface with unit
     /// geometric normal `geo_normal`. A direction at or below the geometric
     /// tangent plane enters the surface itself, so it is occluded without
     /// tracing (shading normals send ~8% of Sponza's cosine-weighted rays

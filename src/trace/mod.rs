@@ -4,13 +4,13 @@
 //! whether anything is hit closer than its max distance (occlusion) or
 //! the closest hit. Both faces occlude.
 //!
-//! - [`batch`]: [`RayBatch`] (origins, unit directions, max distances) and
+//! - `batch`: [`RayBatch`] (origins, unit directions, max distances) and
 //!   [`for_each_receiver`], through which a pass casts its receivers' rays
 //!   as batches: each receiver emits its rays in order, the tracer answers
 //!   the batch, each receiver reads its answers in the same order. The
 //!   tracer decides how a batch is traced, so another backend (a GPU) fits
 //!   behind the same calls.
-//! - [`bvh`]: the CPU backend, [`Tracer`]: one obvhs CWBVH, answering one
+//! - `bvh`: the CPU backend, [`Tracer`]: one obvhs CWBVH, answering one
 //!   ray at a time, which the batches use and the passes whose next ray
 //!   depends on the last answer still call directly.
 //!

@@ -153,9 +153,7 @@ impl OnePage {
     /// Page 0, rasterized (deterministic: every call gives the same).
     pub fn page(&self) -> aobake::job::Page<'_> {
         let mut timer = aobake::stage::StageTimer::new();
-        self.level
-            .page(0, &self.scene, &self.s, &mut timer)
-            .expect("page")
+        self.level.page(0, &self.scene, &mut timer).expect("page")
     }
 }
 

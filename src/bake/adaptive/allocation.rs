@@ -44,18 +44,11 @@ pub fn boundary_variance(crossings: u32, strata: Strata) -> f32 {
 /// binomial sd of its visible share ([`visibility_sd`]) and the sd its
 /// strata's boundary crossings predict ([`boundary_variance`]).
 ///
-/// Measured on Sponza 1024 (an oracle allocation of continuous counts at
-/// equal total rays, per texel, 256-ray Monte Carlo's error against a
-/// 2048-ray reference): within one band of visible share (8-11 of 16),
-/// the squared error grows 4x from 0-2 to 9-11 crossings, which the
-/// binomial sd cannot see; counts from the crossings alone lower the AO
-/// RMSE 0.00626 -> 0.00610 and the p99 0.01965 -> 0.01879. In the method
-/// (quality 256, 2048-ray reference, five scenes at 1024 and Sponza at
-/// 512), the crossings alone save 2-6% of the rays but fail the curtains'
-/// p99 (0.02197 against Monte Carlo's 0.02148: a receiver whose 16 rays
-/// happen to agree is sent too few); the geometric mean holds every
-/// metric on all five (curtains p99 0.02148, equal) for 1-4% fewer rays
-/// than the binomial sd.
+/// At one visible share, a receiver whose strata cross the boundary more
+/// often errs more, which the binomial sd cannot see; the crossings alone
+/// send too few rays to a receiver whose few rays happen to agree. The
+/// geometric mean keeps both signals (measured: [`stratified_sd`] in
+/// `docs/measurements/constants.md`).
 #[inline]
 pub fn stratified_sd(visible: u32, rays: u32, crossings: u32, strata: Strata) -> f32 {
     (boundary_variance(crossings, strata).sqrt() * visibility_sd(visible, rays)).sqrt()
@@ -75,42 +68,31 @@ pub fn ray_exponent(log2_n: f32, lo: u32, hi: u32) -> u32 {
 }
 
 /// How a receiver's error falls with its ray count: the variance of a
-/// stratified estimate goes as rays^-ALPHA. Measured on Monte Carlo's own
-/// curve (AO RMSE at 64, 128 and 256 rays: 1.62-1.64x lower per doubling on
-/// the Cornell box and about 1.6-1.7x on Sponza at 1024, so RMSE ~
-/// rays^-0.7).
+/// stratified estimate goes as rays^-ALPHA, faster than the rays^-1 of
+/// independent samples, as Monte Carlo's own error curve falls
+/// (`docs/measurements/constants.md`, ALPHA).
 pub const ALPHA: f64 = 1.4;
 
 /// How much lower than `quality`-ray Monte Carlo's the predicted variance
 /// of an unfiltered receiver is aimed. The prediction leaves out the noise
 /// of the pre-pass's spread estimate and the receivers whose neighbourhood
-/// saw nothing; measured without a margin, `quality` 256 landed at 1.15x
-/// 256-ray Monte Carlo's AO RMSE on the Cornell box and 1.23x on Sponza
-/// (1024 texels, 2048-ray reference). Measured on five scenes at 1024
-/// (Sponza also at 512), quality 256, 2048-ray reference, with the exact
-/// share below the plane ([`below_compensated`]) and lenders within
-/// [`LENDER_NORMAL_AGREEMENT`]: with the filtered margin at 2.0, 1.2 holds
-/// every metric of Monte Carlo's on all of them (Sponza 512's p99 equal,
-/// the others 1-15% under); 1.0 (with 2.1) fails Sponza's p99 at both
-/// sizes (0.0216 against 0.0205 at 1024) and the engine's AO and L1. Where
-/// the filter removes most of the variance, Monte Carlo's error budget
-/// moves to the unfiltered receivers, whose noise is where the p99 tail
-/// lies (Sponza 512: 53% contact texels carry 0.93 of the 1% above Monte
-/// Carlo's p99); this margin keeps them at Monte Carlo's noise. It is
-/// reached where the filter removes [`MOVED_FOR_FULL_MARGIN`] of the
-/// atlas's Monte Carlo variance ([`unfiltered_margin`]).
+/// saw nothing, so without a margin the method lands above Monte Carlo's
+/// error. Where the filter removes most of the variance, Monte Carlo's
+/// error budget moves to the unfiltered receivers, whose noise is where
+/// the p99 tail lies; this margin keeps them at Monte Carlo's noise (the
+/// smallest that holds every metric of Monte Carlo's on the test scenes:
+/// `docs/measurements/constants.md`, UNFILTERED_MARGIN). It is reached
+/// where the filter removes [`MOVED_FOR_FULL_MARGIN`] of the atlas's Monte
+/// Carlo variance ([`unfiltered_margin`]).
 pub const UNFILTERED_MARGIN: f64 = 1.2;
 
 /// The share of the atlas's predicted Monte Carlo variance the filter
 /// removes (the error budget that moves to the unfiltered receivers) at
 /// which the unfiltered receivers get all of [`UNFILTERED_MARGIN`]; below
-/// it they get that share of it. Measured (quality 256, 2048-ray
-/// reference; the share in parentheses): Sponza 512 (0.21) fails its p99
-/// at an unfiltered margin of 1.0, so it needs the whole margin, as do
-/// Sponza 1024 (0.56), the engine (0.41) and the Cornell box (0.86); on
-/// the curtains (0.04: 93% of texels unfiltered, the budget barely moves)
-/// every metric holds at 1.0 and the margin only added rays (280 per
-/// texel against 242).
+/// it they get that share of it: a scene whose texels are nearly all
+/// unfiltered moves little of the budget and needs no margin, one where
+/// the filter removes a fifth or more needs all of it
+/// (`docs/measurements/constants.md`, MOVED_FOR_FULL_MARGIN).
 pub const MOVED_FOR_FULL_MARGIN: f64 = 0.2;
 
 /// The unfiltered receivers' margin when the filter removes the share
@@ -127,12 +109,9 @@ pub fn unfiltered_margin(moved: f64) -> f64 {
 /// The margin of a receiver whose filter averages many receivers: the
 /// filter's width is set by the clamped cosine's bandlimit (Omega_h), the
 /// L2 band's basis functions vary faster over the hemisphere, so the
-/// filter leaves more of the L2 band's error than N_eff predicts (Cornell
-/// 1024, quality 256, margins 1.5 / 1.5: L2 RMSE 0.00127 against Monte
-/// Carlo's 0.00120 while AO is 0.00387 against 0.00400; the widely filtered
-/// texels' L2 / AO error ratio 0.34 against Monte Carlo's 0.30). With the
-/// unfiltered margin at 1.2: 1.8 leaves the Cornell box's L2 at 0.00121
-/// (over), 2.0 at 0.00114, for 4% more rays there.
+/// filter leaves more of the L2 band's error than N_eff predicts; 2.0 is
+/// the smallest margin that keeps the L2 band at Monte Carlo's error
+/// (`docs/measurements/constants.md`, FILTERED_MARGIN).
 pub(crate) const FILTERED_MARGIN: f64 = 2.0;
 
 /// A receiver's margin from the share of its variance its filter removes

@@ -35,11 +35,9 @@ pub struct FilterSupport<'a> {
 /// Shading-normal agreement of lenders: cos 10 degrees (the leak rule's 25 let too much through). The
 /// filter averages occlusion projected on SH in world axes, so a lender
 /// whose normal turns away lends a lobe turned with it: on curved surfaces
-/// the L1 band blurs. Measured on the two-cylinder engine at 1024 (quality
-/// 256, 2048-ray reference): SH L0/L1/L2 RMSE 0.00169/0.00179/0.00179
-/// with the leak rule's 25 degrees (L1 and L2 over 256-ray Monte Carlo's
-/// 0.00177/0.00180), 0.00167/0.00168/0.00170 at 10 degrees for 1% more
-/// rays, 0.00167/0.00167/0.00169 at 5 for 2% more.
+/// the L1 band blurs. 10 degrees brings L1 and L2 under Monte Carlo's
+/// error for 1% more rays (`docs/measurements/constants.md`,
+/// LENDER_NORMAL_AGREEMENT).
 pub const LENDER_NORMAL_AGREEMENT: f32 = 0.985;
 
 impl FilterSupport<'_> {

@@ -10,28 +10,28 @@
 //!
 //! The stages, in the order [`bake`] calls them, one module each:
 //!
-//! 1. [`prepass`]: `pre_rays` rays per receiver, the first points of its
+//! 1. `prepass`: `pre_rays` rays per receiver, the first points of its
 //!    own sequence: its own z_min, the visible count, the SH sums and the
 //!    strata its visibility boundary crosses.
-//! 2. [`bounds`]: the filter width sigma = z_min / (2 mu Omega_h) from the
-//!    z_min spread over the filter's support ([`width`]), 0 in contact;
-//!    the visibility spread over the neighbourhood ([`grid`]) and N_eff.
-//! 3. [`allocation`]: ray counts in proportion to sd / sqrt(N_eff), scaled
+//! 2. `bounds`: the filter width sigma = z_min / (2 mu Omega_h) from the
+//!    z_min spread over the filter's support (`width`), 0 in contact;
+//!    the visibility spread over the neighbourhood (`grid`) and N_eff.
+//! 3. `allocation`: ray counts in proportion to sd / sqrt(N_eff), scaled
 //!    so the predicted error is `quality`-ray Monte Carlo's, powers of two
 //!    (whole Sobol blocks keep the stratification).
-//! 4. [`adaptive_pass`]: each receiver's sequence continued to its count.
-//! 5. [`filter`]: the integrated AO and occluded SH share averaged over
+//! 4. `adaptive_pass`: each receiver's sequence continued to its count.
+//! 5. `filter`: the integrated AO and occluded SH share averaged over
 //!    the atlas neighbours with Gaussian weights, rows then columns,
 //!    through the leak rule and within z_min; then the exact parts added
-//!    per receiver ([`sums::finish`]: the open hemisphere's projection, the
+//!    per receiver (`sums::finish`: the open hemisphere's projection, the
 //!    share below the geometric plane).
-//! 6. With the visibility layer ([`super::visibility`]): half as many
+//! 6. With the visibility layer (`super::visibility`): half as many
 //!    uniform rays as each receiver's count ([`visibility_rays`]), their
 //!    occluded share filtered with the same weights
-//!    ([`FilterSupport::filter_values`]), the exact parts added per receiver.
+//!    (`FilterSupport::filter_values`), the exact parts added per receiver.
 //!
-//! Below them: [`options`], [`sums`] (what a receiver's rays add up to),
-//! [`strata`], [`width`] and [`grid`] (the atlas as a neighbourhood).
+//! Below them: `options`, `sums` (what a receiver's rays add up to),
+//! `strata`, `width` and `grid` (the atlas as a neighbourhood).
 
 pub(crate) mod adaptive_pass;
 pub(crate) mod allocation;
@@ -62,7 +62,7 @@ pub struct AdaptiveStats {
     pub pre_rays: u64,
     pub adaptive_rays: u64,
     /// Per receiver: rays cast, spread z_min (bake units, INFINITY if
-    /// none; below [`width::contact_depth`] a bound, not the nearest hit), filter
+    /// none; below `width::contact_depth` a bound, not the nearest hit), filter
     /// sigma in texels (0: not filtered).
     pub rays: Vec<u32>,
     pub z_min: Vec<f32>,
@@ -210,11 +210,9 @@ pub fn bake(
 /// (cosine-weighted) rays: half as many, never fewer than the pre-pass's
 /// count. The allocation already sends more rays where the visibility
 /// varies more, and a filtered receiver's share is averaged like its SH.
-/// Measured on Sponza 1024 (`probes/visibility_error`, 2000 texels, 4096
-/// reference rays; layer error mean / p95 at 30 and 60 degrees, time with
-/// the layer over without): the same count 0.0090 / 0.0257, 0.0109 /
-/// 0.0314 at 1.74x; half everywhere 0.0093 / 0.0271, 0.0115 / 0.0342 at
-/// 1.44x; a quarter where filtered 0.0099 / 0.0295, 0.0131 / 0.0400.
+/// Half costs little of the layer's accuracy for much of its time; a
+/// quarter costs more (`probes/visibility_error`;
+/// `docs/measurements/constants.md`, visibility_rays).
 #[inline]
 pub fn visibility_rays(rays: u32, pre_rays: u32) -> u32 {
     (rays / VISIBILITY_RAY_DIVISOR).max(pre_rays)

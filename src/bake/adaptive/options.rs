@@ -131,7 +131,7 @@ impl AdaptiveOptions {
     }
 
     /// Bytes per receiver the bake keeps after it ends, in
-    /// [`AdaptiveStats`]: rays, z_min, sigma and inside (which the other
+    /// `AdaptiveStats`: rays, z_min, sigma and inside (which the other
     /// methods' validity stage holds instead).
     pub const KEPT_BYTES_PER_TEXEL: u64 = 13;
 }

@@ -33,9 +33,9 @@ pub struct RaySums {
 /// subtracts again per receiver after the filter. Filtering the whole
 /// occlusion mixed the neighbours' shares below their planes, which
 /// differ on a curved surface with shading normals (and a 16-ray receiver
-/// keeps the sampling error of its rays below); measured at 1024, quality
-/// 256, AO RMSE per texel class: the wide filters' 0.0099 -> 0.0061 on the
-/// curtains.
+/// keeps the sampling error of its rays below): the wide filters' error
+/// fell by a third on the curtains (`docs/measurements/constants.md`,
+/// below_compensated).
 ///
 /// `above_only` (a filtered receiver): `s` holds the rays above the plane
 /// only and `s.below` counts the others; the estimate is the exact share
@@ -46,8 +46,8 @@ pub struct RaySums {
 /// after the bake subtracts them again. (The exact share as a control
 /// variate there measured worse: in contact the rays below and the hits
 /// above are one occluded region, and subtracting the exact share from an
-/// AO near 0 then clamping biased it bright: curtains, 256-ray Monte
-/// Carlo, AO RMSE 0.00715 -> 0.00745, bias +0.0004.)
+/// AO near 0 then clamping biased it bright:
+/// `docs/measurements/constants.md`, below_compensated's control variate.)
 pub fn below_compensated(
     s: &RaySums,
     rays: u32,
@@ -100,9 +100,8 @@ pub fn below_fraction(n: Vec3, geo: Vec3) -> f32 {
 /// normal ([`sh::open_hemisphere`]) less the exact share below
 /// ([`sh::below_plane`]). The open projection is added after the filter:
 /// filtering it with the occluded share mixed the neighbours' normals
-/// into the L1 band on curved surfaces (Sponza 1024, quality 256: L1 RMSE
-/// 0.0026 against 256-ray Monte Carlo's 0.0019, and 0.0023 still at
-/// quality 512).
+/// into the L1 band on curved surfaces, past Monte Carlo's error even at
+/// twice the quality (`docs/measurements/constants.md`, finish).
 pub fn finish(normal: &[Vec3], geo_normal: &[Vec3], ao: &mut [f32], sh: &mut [[f32; SH_COUNT]]) {
     use rayon::prelude::*;
     ao.par_iter_mut()

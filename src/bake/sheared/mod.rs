@@ -10,10 +10,10 @@
 //! |---|---|---|
 //! | `mod.rs` | [`bake`]: both passes, timed | Section 5 |
 //! | `types.rs` | what goes in and out: [`ShearedOptions`], [`Samples`], [`ShearedStats`] | |
-//! | [`passes`] | the sparse pass, the filter pass over all receivers | Algorithm 1's outer loop |
-//! | [`receiver`] | one receiver: gather, depth bounds, marks, filter, brute force | Algorithm 1, lines 1-33 |
-//! | [`geometry`] | per-pair math: leak rule, Eq. 8, Eq. 9, Figure 6, weights, Jacobian | Eqs. 8-9, Figure 6 |
-//! | [`order`] | receivers in Morton order of their texels, and back | (locality, ours) |
+//! | `passes` | the sparse pass, the filter pass over all receivers | Algorithm 1's outer loop |
+//! | `receiver` | one receiver: gather, depth bounds, marks, filter, brute force | Algorithm 1, lines 1-33 |
+//! | `geometry` | per-pair math: leak rule, Eq. 8, Eq. 9, Figure 6, weights, Jacobian | Eqs. 8-9, Figure 6 |
+//! | `order` | receivers in Morton order of their texels, and back | (locality, ours) |
 //!
 //! 1. *Sparse pass*: K cosine-weighted rays per receiver; each [`Samples`]
 //!    entry keeps the direction and hit distance (or a miss).

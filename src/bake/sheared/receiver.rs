@@ -635,9 +635,9 @@ fn filter_samples(
 /// each of the 8x8 cells, so every marked cell gets exactly m points, and
 /// those of the first K are the sparse rays already traced (reused, not
 /// traced again). Together the points keep the sequence's stratification
-/// across cells: on Sponza 512 with every cell marked this equals
-/// `--method mc` at 64 m rays (AO RMSE 0.0123 at 128), where m rays drawn
-/// per cell independently gave 0.0146.
+/// across cells: with every cell marked this equals `--method mc` at 64 m
+/// rays, where m rays drawn per cell independently erred more
+/// (`docs/measurements/constants.md`, second_pass_points).
 fn second_pass_points<'r>(
     rays: &'r ReceiverRays,
     cell_rays: u32,

@@ -15,7 +15,7 @@ pub(super) const SPARSE_STREAM: u64 = 1;
 
 /// Options of the sheared filter (paper defaults where the paper gives
 /// one). The max distance and seed every method shares are in
-/// [`BakeParams`]. Each field's doc comment is its `--help` line; the
+/// `BakeParams`. Each field's doc comment is its `--help` line; the
 /// measurements behind the defaults are in the comments above
 /// [`ShearedOptions::DEFAULT`] and in `docs/method-sheared.md`.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -43,18 +43,17 @@ pub struct ShearedOptions {
 impl ShearedOptions {
     /// Every option's default.
     pub const DEFAULT: ShearedOptions = ShearedOptions {
-        // Paper: 4-32. 4 measured best at the default radius: at 1024
-        // texels against 8 it took 0.91x the time on Sponza (AO RMSE
-        // 0.0113 vs 0.0115), 0.98x on the engine (0.0107 vs 0.0108) and
-        // 0.82x on the Cornell box (0.0071 vs 0.0069, where Monte Carlo
-        // pays about 4% more time per 3% less error).
+        // Paper: 4-32. 4 measured best at the default radius: less time
+        // than 8 for the same error (`docs/measurements/constants.md`,
+        // the sheared filter's sparse rays).
         sparse_rays: 4,
         // Paper: 8-16 pixels.
         gather_radius: 4.0,
         // Paper: 2.
         omega_v_max: 2.0,
-        // Paper: ~2 samples; 4 measured better on Sponza (AO RMSE 0.0147
-        // vs 0.0156).
+        // Paper: ~2 samples; 4 measured better
+        // (`docs/measurements/constants.md`, the sheared filter's min
+        // weight).
         min_weight: 4.0,
         // Paper: 1.
         cell_rays: 2,

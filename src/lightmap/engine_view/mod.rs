@@ -14,7 +14,7 @@
 //! - *border*: at least one does not (slivers included);
 //! - *sliver*: none does (a chart thinner than a texel there).
 //!
-//! The reference ([`reference`]) is the contract's: AO and c_i at the point
+//! The reference (`reference`) is the contract's: AO and c_i at the point
 //! with n = its interpolated normal, by Monte Carlo (and v_i where the
 //! visibility layer is baked); points inside geometry (the contract's rule,
 //! [`crate::bake::validity`]) are left out, as no camera sees them.
@@ -23,8 +23,8 @@
 //! error* is what an engine's normal-mapped diffuse makes of the lookups:
 //! |E(n') from the looked-up c and v - E(n') from the reference's| / the
 //! unoccluded E(n'), the anchored diffuse of [`crate::relight`] at a normal
-//! n' tilted [`RELIGHT_TILT_DEGREES`] from n (azimuth per point) under
-//! [`RELIGHT_ENVIRONMENTS`] fixed L2 environments, averaged.
+//! n' tilted `RELIGHT_TILT_DEGREES` from n (azimuth per point) under
+//! `RELIGHT_ENVIRONMENTS` fixed L2 environments, averaged.
 
 use crate::atlas::Receivers;
 use crate::atlas::rasterize::SurfaceTri;
@@ -55,7 +55,7 @@ pub struct SurfacePoints {
     pub mesh: Vec<u32>,
 }
 
-/// The reference at surface points ([`reference`]).
+/// The reference at surface points (`reference`).
 #[derive(Clone, Debug, Default)]
 pub struct PointReference {
     pub ao: Vec<f32>,

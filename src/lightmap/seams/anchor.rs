@@ -23,11 +23,9 @@ use crate::sh::{SH_COUNT, VIS_COUNT};
 use crate::trace::Tracer;
 
 /// Rays of each target knot. The knots are smoothed along the seam and
-/// the texels cannot follow their noise anyway: Sponza `--texel-density
-/// 28 --page-size 1024` (1,573 cross-page seams), AO jump mean 0.0107 at
-/// 64 rays, 0.0104 at 256 and at 1024, while tracing the targets was ~75%
-/// of the seams stage at 256 (3.8 s -> 1.55 s at 64; on 16 copies of
-/// Sponza, 16 pages, the stage was 40x Sponza's alone for 16x the texels).
+/// the texels cannot follow their noise anyway: more rays barely close
+/// the jumps further and tracing the targets dominated the seams stage
+/// (`docs/measurements/constants.md`, TARGET_RAYS).
 pub const TARGET_RAYS: u32 = 64;
 
 /// Side `side`'s length in texels of its page.

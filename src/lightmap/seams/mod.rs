@@ -54,14 +54,9 @@ pub const SMOOTH_DEGREES: f32 = 10.0;
 /// contract's AO: each side's points see their own face's plane (the ray
 /// origin is offset along the geometric normal, and the part of the
 /// shading normal's hemisphere behind the face is occluded by it), so the
-/// reference itself jumps there. Sponza 1024, a 512-ray reference at the
-/// two sides' receivers on one point of the edge: mean |AO jump| 0.008
-/// with faces within 1 degree, 0.011 within 10, 0.034 at 10-45 and 0.170
-/// beyond 45 (`probes/seam_sides`); 81% of the seams with smooth vertex
-/// normals have faces more than 20 degrees apart. Stitching those moved
-/// both sides off the reference: engine-view AO RMSE over all points
-/// 0.0246 stitching every smooth-normal seam, 0.0193 with faces within 10,
-/// 20 or 30 degrees (0.0204 within 45), 0.0185 with no stitching.
+/// reference itself jumps there, more the further the faces turn, and
+/// stitching such a seam moves both sides off the reference
+/// (`probes/seam_sides`; `docs/measurements/constants.md`, FLAT_DEGREES).
 pub const FLAT_DEGREES: f32 = 20.0;
 
 /// What stitching a page did, for the report.
@@ -186,8 +181,8 @@ pub fn stitch_page(
     // With the border fit, the solve keeps every channel within the range
     // the page held before it: the encoding's scale and offset cover each
     // coefficient's range over the page, and a gutter texel extrapolated
-    // past it would coarsen every texel's quantization (Sponza 1024,
-    // interior SH RMSE 0.0035 -> 0.0065 without this).
+    // past it would coarsen every texel's quantization, the interior's
+    // too (`docs/measurements/constants.md`, the solve's range).
     let range = (!fitted.is_empty()).then(|| {
         let extend = |(mut lo, mut hi): (Vec<f32>, Vec<f32>), t: usize| {
             let vis = visibility.as_deref().map_or(&[][..], |v| &v[t][..]);
@@ -353,8 +348,8 @@ pub fn jump_map(points: &[metric::SeamPoint], width: u32, height: u32) -> Vec<u8
 /// is every texel of its 3 x 3 neighbourhood. Stitching moves only the
 /// others (border and gutter texels), so the receivers' own estimates
 /// inside every chart stay as baked. (Fixing every texel whose centre lies
-/// inside a triangle instead leaves too little to move: Sponza 1024, AO
-/// jump mean 0.0149, p95 0.064, 8.8% over 8/255.)
+/// inside a triangle instead leaves too little to move:
+/// `docs/measurements/constants.md`, interior texels.)
 pub fn interior(covered: &[bool], width: u32, height: u32, t: u32) -> bool {
     interior_within(covered, width, height, t, 1)
 }

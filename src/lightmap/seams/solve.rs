@@ -22,13 +22,10 @@ use serde::Serialize;
 
 /// lambda: the weight of a seam constraint against one texel's data term.
 /// Larger agrees better and converges slower (the system's condition
-/// grows with lambda^2). With interior texels fixed (AO jump mean / p95 /
-/// share over 8/255 after, the stage's seconds): Sponza 1024, lambda 5:
-/// 0.0041 / 0.0135 / 0.8%, 0.75 s; 8: 0.0026 / 0.0085 / 0.7%, 1.12 s
-/// (over the 10% of the bake's time); flight helmet 1024, lambda 5: 0.0068
-/// / 0.0255 / 3.9%; 8: 0.0056 / 0.0212 / 3.4%. (All texels free, lambda
-/// 4: Sponza 0.0042 / 0.0128 / 0.6%, but interior texels' AO RMSE against
-/// a reference 0.0059 -> 0.0214.)
+/// grows with lambda^2). 5 closes most of the jumps within a tenth of the
+/// bake's time; the interior texels stay fixed, since freeing them closes
+/// the seams no better and moves them off the reference
+/// (`docs/measurements/constants.md`, SEAM_WEIGHT).
 pub const SEAM_WEIGHT: f64 = 5.0;
 
 /// Constraint points per texel of seam length.
@@ -80,10 +77,9 @@ pub struct Anchor {
 /// The stitched values of a `width` x `height` page along `seams`:
 /// `baked(texel, out)` writes a texel's `channels` baked values into `out`.
 /// Every texel's data term weighs 1: a heavier one for covered texels (they
-/// hold their receivers' estimates, the gutter only copies) measured no
-/// better at covered texels and worse at the seams (Sponza 1024, covered
-/// weight 4: AO RMSE of the moved covered texels 0.0894 against 0.0997,
-/// seam jump mean 0.0108 against 0.0042; weight 16: 0.0696, 0.0282).
+/// hold their receivers' estimates, the gutter only copies) measured
+/// worse at the seams for little at the covered texels
+/// (`docs/measurements/constants.md`, the data term's weight).
 /// `anchors` add one-sided constraints (lookup = target) of a seam (its
 /// other side on another page); seam rows, two-sided and these, are scaled
 /// by `seam_scale`. `fitted` add one-sided constraints of their own weight
