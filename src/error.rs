@@ -51,6 +51,11 @@ pub enum Error {
     /// A set of shard partials cannot be merged (names the partial).
     #[error("merge refused: {0}")]
     Merge(String),
+
+    /// The GPU backend failed (no adapter, a lost device, a refused
+    /// shader): the message names the adapter and what failed.
+    #[error("GPU: {0}")]
+    Gpu(String),
 }
 
 impl Error {

@@ -13,11 +13,15 @@
 //! - `bvh`: the CPU backend, [`Tracer`]: one obvhs CWBVH, answering one
 //!   ray at a time, which the batches use and the passes whose next ray
 //!   depends on the last answer still call directly.
+//! - `gpu` (feature `gpu`): the GPU backend, a wgpu compute shader over
+//!   obvhs's BVH2 answering occlusion batches.
 //!
 //! Here too: robust ray origins ([`offset_origin`]).
 
 pub(crate) mod batch;
 pub(crate) mod bvh;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 
 pub use batch::{Closest, Occlusion, Query, RayBatch, for_each_receiver, for_each_receiver_query};
 pub use bvh::{Hit, Tracer};

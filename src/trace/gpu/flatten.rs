@@ -1,0 +1,102 @@
+//! The BVH as the GPU reads it.
+//!
+//! In: bake-space occluder triangles. Out: [`FlatBvh`]: obvhs's BVH2 (a
+//! binary tree, the layout a compute shader walks with a short stack: the
+//! `tray_racing` benchmark's compute traversal uses it) as 32-byte nodes,
+//! the triangles in leaf order, and the tree's depth, which bounds the
+//! shader's stack.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3A;
+use obvhs::{BvhBuildParams, bvh2::builder::build_bvh2_from_tris, triangle::Triangle};
+use std::time::Duration;
+
+/// A node as the shader reads it (`Node` in occlusion.wgsl): its box, and
+/// either its first child (`count` 0; the second is the next node) or its
+/// first triangle and triangle count (a leaf).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuNode {
+    pub lo: [f32; 3],
+    pub first: u32,
+    pub hi: [f32; 3],
+    pub count: u32,
+}
+
+/// A triangle as the shader reads it (`Tri`): three vertices, each padded
+/// to 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuTri {
+    pub v: [[f32; 4]; 3],
+}
+
+/// The flattened tree.
+pub struct FlatBvh {
+    pub nodes: Vec<GpuNode>,
+    pub tris: Vec<GpuTri>,
+    /// The longest root-to-leaf path, in nodes below the root: the most
+    /// entries the traversal's stack holds.
+    pub depth: u32,
+}
+
+/// Builds obvhs's BVH2 over `occluders` (the same presets as the CPU's
+/// CWBVH) and flattens it; `None` without triangles.
+pub fn flatten(occluders: &[[Vec3A; 3]]) -> Option<FlatBvh> {
+    if occluders.is_empty() {
+        return None;
+    }
+    let tris: Vec<Triangle> = occluders
+        .iter()
+        .map(|t| Triangle {
+            v0: t[0],
+            v1: t[1],
+            v2: t[2],
+        })
+        .collect();
+    let params = if tris.len() > 20_000 {
+        BvhBuildParams::very_slow_build()
+    } else {
+        BvhBuildParams::medium_build()
+    };
+    let bvh = build_bvh2_from_tris(&tris, params, &mut Duration::default());
+    let nodes: Vec<GpuNode> = bvh
+        .nodes
+        .iter()
+        .map(|n| GpuNode {
+            lo: n.aabb.min.into(),
+            first: n.first_index,
+            hi: n.aabb.max.into(),
+            count: n.prim_count,
+        })
+        .collect();
+    let tris = bvh
+        .primitive_indices
+        .iter()
+        .map(|&i| {
+            let t = &tris[i as usize];
+            let p = |v: Vec3A| [v.x, v.y, v.z, 0.0];
+            GpuTri {
+                v: [p(t.v0), p(t.v1), p(t.v2)],
+            }
+        })
+        .collect();
+    let depth = depth(&nodes);
+    Some(FlatBvh { nodes, tris, depth })
+}
+
+/// The tree's depth below the root (0 for a root leaf), walked without
+/// recursion.
+fn depth(nodes: &[GpuNode]) -> u32 {
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 0u32)];
+    while let Some((i, d)) = stack.pop() {
+        deepest = deepest.max(d);
+        let n = nodes[i];
+        if n.count == 0 {
+            stack.push((n.first as usize, d + 1));
+            stack.push((n.first as usize + 1, d + 1));
+        }
+    }
+    deepest
+}
