@@ -43,4 +43,6 @@ pub mod trace;
 pub mod view;
 
 pub use error::{Error, Result};
-pub use job::{BakeSettings, Method, Report, RunOptions, UvSource, bake, bake_file, bake_scene};
+pub use job::{
+    BakeSettings, Device, Method, Report, RunOptions, UvSource, bake, bake_file, bake_scene,
+};

@@ -492,6 +492,24 @@ fn memory_estimate_refuses_huge_atlases_before_allocating() {
     );
 }
 
+/// A build without the GPU backend refuses `--device gpu` at once (`auto`
+/// traces on the CPU).
+#[cfg(not(feature = "gpu"))]
+#[test]
+fn a_gpu_without_the_backend_is_refused() {
+    let (j, b) = base();
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.glb");
+    std::fs::write(&input, pack(&j, &b)).unwrap();
+    let out = dir.path().join("out.glb");
+    assert_refused(
+        &input,
+        &out,
+        &["--device", "gpu"],
+        "--device gpu: this build has no GPU backend",
+    );
+}
+
 #[test]
 fn bad_options_are_refused_in_one_line() {
     let (j, b) = base();

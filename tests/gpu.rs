@@ -64,11 +64,17 @@ fn occlusion_is_what_the_geometry_says() {
     assert_eq!(out, expected, "on {:?}", gpu.adapter());
 }
 
-/// Watertight: from inside a closed octahedron every ray hits, those aimed
-/// exactly at its vertices and along its edges included, where a
-/// non-watertight test lets rays slip between the triangles.
+/// Rays along triangle edges and through vertices, where the triangle
+/// test decides by rounding: from inside a closed octahedron, aimed at its
+/// vertices, its edges' midpoints and swept along an edge, the GPU answers
+/// as the CPU but for the last bit of a product on a few exact edge rays;
+/// just off the edge, exactly as the CPU. (Both use obvhs's test, which is not watertight: a
+/// ray exactly along a shared edge can miss both triangles, as most of
+/// these do. The GPU keeps it for the answers to agree; Woop's watertight
+/// test there disagreed with the CPU on 7% of the Cornell box's bake rays,
+/// the ones from texels on the edge between two walls.)
 #[test]
-fn no_ray_slips_between_triangles() {
+fn edge_and_vertex_rays_are_answered_as_on_the_cpu() {
     let v = [
         Vec3A::X,
         -Vec3A::X,
@@ -82,11 +88,9 @@ fn no_ray_slips_between_triangles() {
         faces.push([v[a], v[b], v[4]]);
         faces.push([v[b], v[a], v[5]]);
     }
-    let scale = 0.3;
-    let faces: Vec<[Vec3A; 3]> = faces.iter().map(|f| f.map(|p| p * scale)).collect();
+    let faces: Vec<[Vec3A; 3]> = faces.iter().map(|f| f.map(|p| p * 0.3)).collect();
     let Some(gpu) = gpu(&faces) else { return };
-    let mut rays = RayBatch::new();
-    let origin = Vec3::new(0.0, 0.0, 0.0);
+    let cpu = Tracer::new(&faces);
     let mut aims: Vec<Vec3> = v.iter().map(|&p| Vec3::from(p)).collect();
     for (a, b) in [
         (0, 2),
@@ -100,26 +104,36 @@ fn no_ray_slips_between_triangles() {
     ] {
         aims.push(Vec3::from(v[a] + v[b]).normalize());
     }
-    // And a dense sweep across the edge from +X to +Y at z = 0.
     for k in 0..=1000 {
         let a = std::f32::consts::FRAC_PI_2 * k as f32 / 1000.0;
         aims.push(Vec3::new(a.cos(), a.sin(), 0.0));
+        // Off the edge by a little: every one hits.
+        aims.push(Vec3::new(a.cos(), a.sin(), 1e-3).normalize());
     }
+    let mut rays = RayBatch::new();
     for d in &aims {
-        rays.push(origin, *d, 1.0);
+        rays.push(Vec3::ZERO, *d, 1.0);
     }
-    let mut out = Vec::new();
-    gpu.occluded_batch(&rays, &mut out).unwrap();
-    let slipped: Vec<Vec3> = aims
-        .iter()
-        .zip(&out)
-        .filter(|(_, hit)| !**hit)
-        .map(|(d, _)| *d)
+    let (mut on_gpu, mut on_cpu) = (Vec::new(), Vec::new());
+    gpu.occluded_batch(&rays, &mut on_gpu).unwrap();
+    cpu.occluded_batch(&rays, &mut on_cpu);
+    // Off the edges every answer agrees (and hits); exactly on an edge or
+    // a vertex the last bit of a product decides, and at most 1% differ.
+    // (The sweep's ends, along x = 0 or y = 0, lie on edges too.)
+    let off_edge: Vec<usize> = (1..1000).map(|k| 14 + 2 * k + 1).collect();
+    assert!(off_edge.iter().all(|&i| on_gpu[i] && on_cpu[i]));
+    let differ: Vec<(Vec3, bool)> = (0..aims.len())
+        .filter(|&i| on_gpu[i] != on_cpu[i])
+        .map(|i| (aims[i], on_cpu[i]))
         .collect();
+    eprintln!(
+        "{} of {} edge and vertex rays differ: {differ:?}",
+        differ.len(),
+        aims.len() - off_edge.len()
+    );
     assert!(
-        slipped.is_empty(),
-        "{} rays slipped: {slipped:?}",
-        slipped.len()
+        differ.len() * 100 <= aims.len() - off_edge.len(),
+        "{differ:?}"
     );
 }
 
@@ -203,9 +217,8 @@ fn the_flattened_tree_holds_every_triangle_once_inside_its_boxes() {
     let flat = aobake::trace::gpu::flatten(&occluders).unwrap();
     assert_eq!(flat.tris.len(), occluders.len());
     let mut seen = vec![0; flat.tris.len()];
-    let inside = |lo: [f32; 3], hi: [f32; 3], p: [f32; 3]| {
-        (0..3).all(|k| lo[k] <= p[k] && p[k] <= hi[k])
-    };
+    let inside =
+        |lo: [f32; 3], hi: [f32; 3], p: [f32; 3]| (0..3).all(|k| lo[k] <= p[k] && p[k] <= hi[k]);
     let mut stack = vec![0usize];
     while let Some(i) = stack.pop() {
         let n = flat.nodes[i];
@@ -218,8 +231,10 @@ fn the_flattened_tree_holds_every_triangle_once_inside_its_boxes() {
         } else {
             for t in n.first..n.first + n.count {
                 seen[t as usize] += 1;
-                for v in flat.tris[t as usize].v {
-                    assert!(inside(n.lo, n.hi, [v[0], v[1], v[2]]));
+                // Rebuilt from the edges: within rounding of the box.
+                for v in flat.tris[t as usize].vertices() {
+                    let grown = |b: [f32; 3], s: f32| b.map(|x| x + s * 1e-6);
+                    assert!(inside(grown(n.lo, -1.0), grown(n.hi, 1.0), v));
                 }
             }
         }
@@ -227,4 +242,111 @@ fn the_flattened_tree_holds_every_triangle_once_inside_its_boxes() {
     assert!(seen.iter().all(|&s| s == 1));
     assert!(flat.depth >= 8 && flat.depth < 64, "{}", flat.depth);
     assert!(aobake::trace::gpu::flatten(&[]).is_none());
+}
+
+/// A whole bake with `--device gpu` against `--device cpu`: the occlusion
+/// batches on lavapipe, the rest as on the CPU. The adaptive method's and
+/// Monte Carlo's AO and 9 SH within 1/255 of the CPU bake's on at least
+/// 99.9% of texels, and the report names the adapter; `auto` takes no
+/// software adapter.
+#[test]
+fn a_gpu_bake_is_the_cpu_bake() {
+    let scene = common::bundled_scene("cornell_box.glb");
+    if gpu(&quad(0.2)).is_none() {
+        return;
+    }
+    for method in [aobake::Method::Adaptive, aobake::Method::Mc] {
+        let settings = |device| aobake::BakeSettings {
+            size: aobake::atlas::AtlasSize::Resolution(128),
+            method,
+            rays: 64,
+            device,
+            ..aobake::BakeSettings::DEFAULT
+        };
+        let cpu = aobake::bake_scene(&scene, &settings(aobake::Device::Cpu)).unwrap();
+        let on_gpu = aobake::bake_scene(&scene, &settings(aobake::Device::Gpu)).unwrap();
+        let adapter = on_gpu.report.backend.adapter.clone();
+        assert!(adapter.is_some(), "{:?}", on_gpu.report.backend);
+        assert_eq!(cpu.report.backend.adapter, None);
+        let (a, b) = (&cpu.lightmap, &on_gpu.lightmap);
+        assert_eq!((a.width, a.height), (b.width, b.height));
+        let texels = a.ao.len();
+        let far = (0..texels)
+            .filter(|&t| {
+                let ao = (a.ao[t] - b.ao[t]).abs();
+                let sh = (0..9).map(|i| (a.sh[t][i] - b.sh[t][i]).abs());
+                ao.max(sh.fold(0.0, f32::max)) > 1.0 / 255.0
+            })
+            .count();
+        eprintln!("{method:?}: {far} of {texels} texels past 1/255 on {adapter:?}");
+        assert!(
+            far * 1000 <= texels,
+            "{method:?}: {far} of {texels} texels past 1/255"
+        );
+        // Not vacuous: the box occludes.
+        assert!(a.ao.iter().any(|&v| v < 0.5));
+    }
+    // auto: a software adapter is not a GPU.
+    let auto = aobake::bake_scene(
+        &scene,
+        &aobake::BakeSettings {
+            size: aobake::atlas::AtlasSize::Resolution(64),
+            ..aobake::BakeSettings::DEFAULT
+        },
+    )
+    .unwrap();
+    let software_only = GpuTracer::new(&quad(0.2), Adapters::Hardware).is_err();
+    assert_eq!(auto.report.backend.adapter.is_none(), software_only);
+    if software_only {
+        let why = auto.report.backend.cpu_because.unwrap();
+        assert!(why.contains("no hardware GPU adapter"), "{why}");
+    }
+}
+
+/// Shards record where they traced: a level whose shards traced on the GPU
+/// and on the CPU is refused at the merge, one traced on one device merges.
+#[test]
+fn shards_of_one_level_share_their_device() {
+    if gpu(&quad(0.2)).is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let input = common::asset_path("generated/courtyard.glb");
+    let out = dir.path().join("level.glb");
+    let shard = |i: u32, device: &str| {
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_aobake"))
+            .arg(&input)
+            .arg(&out)
+            .args(["--texel-density", "4", "--page-size", "128", "--rays", "16"])
+            .args(["--method", "mc", "--device", device, "-q"])
+            .args(["--shard", &format!("{i}/2")])
+            .status()
+            .unwrap();
+        assert!(status.success(), "shard {i} on {device}");
+    };
+    let merge = || {
+        std::process::Command::new(env!("CARGO_BIN_EXE_aobake"))
+            .args(["merge", "-q"])
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    shard(0, "gpu");
+    shard(1, "cpu");
+    let mixed = merge();
+    let err = String::from_utf8_lossy(&mixed.stderr);
+    assert_eq!(mixed.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("merge refused") && err.contains("baked with other settings"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    shard(1, "gpu");
+    let merged = merge();
+    assert!(
+        merged.status.success(),
+        "{}",
+        String::from_utf8_lossy(&merged.stderr)
+    );
+    assert!(out.exists());
 }

@@ -7,6 +7,7 @@
 //! memory is the level plus one page, and the memory limit is checked per
 //! page.
 
+use super::device::{self, Backend};
 use crate::atlas::{self, Atlas, AtlasSize, UnwrapOptions};
 use crate::bake::signal::{self, TexelBudget};
 use crate::error::{Error, Result};
@@ -41,6 +42,8 @@ pub struct Level {
     pub visibility_meshes: Vec<bool>,
     /// Smooth seams whose sides lie on two pages (`--seams stitch`).
     pub cross_seams: Vec<CrossSeam>,
+    /// Where the rays are traced (`--device`).
+    pub backend: Backend,
     /// The settings the level was built with (validated): its pages are
     /// rasterized and tested for receivers inside geometry by them.
     settings: BakeSettings,
@@ -211,9 +214,13 @@ impl Level {
                 MAX_BAKE_BYTES >> 30
             )));
         }
-        let tracer = early_tracer.unwrap_or_else(|| {
+        let mut tracer = early_tracer.unwrap_or_else(|| {
             Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided)
         });
+        let backend = device::attach(&mut tracer, &geometry.occluders, s.device)?;
+        if run.progress {
+            eprintln!("aobake: {}", backend.line());
+        }
         timer.lap("bvh");
         let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
         let cross_seams = if s.seams == SeamMode::Stitch && atlas.pages.len() > 1 {
@@ -229,6 +236,7 @@ impl Level {
             max_distance,
             visibility_meshes,
             cross_seams,
+            backend,
             settings: s.clone(),
             surface_areas: std::sync::OnceLock::new(),
         })

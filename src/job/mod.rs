@@ -28,9 +28,11 @@
 //! - `level`: what every page shares ([`Level`]) and one page ([`Page`]);
 //! - `page`: a page's passes and output, and the write-back;
 //! - `report`: the `--report` JSON;
+//! - [`device`]: where the rays are traced (`--device`);
 //! - [`shard`](mod@shard): sharded bakes and their merge.
 
 pub mod across;
+pub mod device;
 pub(crate) mod level;
 pub(crate) mod page;
 pub(crate) mod report;
@@ -44,7 +46,7 @@ pub use page::{BakePasses, Page, PageOutput};
 pub use report::{
     AdaptiveReport, PageDone, PageReport, Report, ShearedReport, VisibilityReport, level_report,
 };
-pub use settings::{BakeSettings, Method, RunOptions, UvSource, VisibilityMode};
+pub use settings::{BakeSettings, Device, Method, RunOptions, UvSource, VisibilityMode};
 pub use shard::{Merged, bake_shard, merge};
 pub use write::write;
 
@@ -156,6 +158,13 @@ impl<'a> Job<'a> {
             ));
             keep(page, passes, out);
         }
+        // A GPU that failed mid-bake left the rest to the CPU: an error
+        // where the GPU was asked for, a warning (in write) for auto.
+        if let Some(failure) = level.tracer.gpu_failure()
+            && s.device == Device::Gpu
+        {
+            return Err(Error::Gpu(format!("{failure}; nothing written")));
+        }
         Ok(done)
     }
 
@@ -191,14 +200,20 @@ impl<'a> Job<'a> {
         let encoded: Vec<&Encoded> = (encoded.iter().enumerate())
             .map(|(k, &e)| closed.get(k).and_then(Option::as_ref).unwrap_or(e))
             .collect();
-        write(
+        let (glb, mut warnings) = write(
             self.scene,
             level,
             &encoded,
             self.settings,
             output_dir,
             &mut self.timer,
-        )
+        )?;
+        if let Some(failure) = level.tracer.gpu_failure() {
+            warnings.push(format!(
+                "the GPU failed mid-bake ({failure}); the rest was traced on the CPU"
+            ));
+        }
+        Ok((glb, warnings))
     }
 
     /// The report of the pages baked (`done`), with every stage the timer

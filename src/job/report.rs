@@ -133,6 +133,9 @@ pub struct Report {
     pub max_distance: f64,
     pub seed: u64,
     pub threads: usize,
+    /// Where the rays were traced (`--device`): the GPU adapter, if one
+    /// answered the occlusion batches.
+    pub backend: super::device::Backend,
     /// Every stage in order, each timed once (`sparse pass` and `filter
     /// pass` for the sheared method, `trace` for Monte Carlo).
     pub stages: Vec<StageTime>,
@@ -389,6 +392,7 @@ pub fn level_report(
         max_distance: level.max_distance_world,
         seed: s.seed,
         threads: rayon::current_num_threads(),
+        backend: level.backend.clone(),
         stages: Vec::new(),
         total_seconds: 0.0,
         warnings,

@@ -197,6 +197,35 @@ pub struct BakeSettings {
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.texel_budget))]
     #[serde(default, skip_serializing_if = "TexelBudget::is_uniform")]
     pub texel_budget: TexelBudget,
+    /// Where rays are traced: auto (a hardware GPU when one is found, else
+    /// the CPU; a software Vulkan adapter such as lavapipe does not count),
+    /// cpu, or gpu (any Vulkan adapter, software ones included; an error
+    /// without one). The GPU answers the same rays as the CPU up to
+    /// rounding at triangle edges, so its bytes may differ
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.device))]
+    #[serde(default, skip_serializing_if = "Device::traces_on_cpu")]
+    pub device: Device,
+}
+
+/// Where rays are traced (`--device`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+#[non_exhaustive]
+pub enum Device {
+    #[default]
+    Auto,
+    Cpu,
+    Gpu,
+}
+
+impl Device {
+    /// Whether a shard's fingerprint leaves it out: a bake recorded with
+    /// `gpu` traced there (a shard records where it traced, see
+    /// `job/shard.rs`), one without on the CPU.
+    pub fn traces_on_cpu(&self) -> bool {
+        *self != Device::Gpu
+    }
 }
 
 /// Largest `--min-chart-width`: wider than the bilinear footprint (2
@@ -227,6 +256,7 @@ impl BakeSettings {
         border: BorderMode::Fit,
         filter: Filter::Bilinear,
         texel_budget: TexelBudget::Uniform,
+        device: Device::Auto,
     };
 }
 
@@ -294,6 +324,12 @@ impl BakeSettings {
     /// they read the input, so a bad option fails at once;
     /// [`crate::job::Level::new`] calls it for a level built directly.
     pub fn validate(&self) -> Result<()> {
+        if self.device == Device::Gpu && !cfg!(feature = "gpu") {
+            return Err(Error::option(
+                "device",
+                "gpu: this build has no GPU backend (build with --features gpu)",
+            ));
+        }
         // Refused whichever method reads it.
         if self.rays == 0 {
             return Err(Error::option("rays", "must be at least 1"));

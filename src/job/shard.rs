@@ -19,7 +19,7 @@ use crate::encode::Encoded;
 use crate::error::{Error, Result};
 use crate::file;
 use crate::gltf;
-use crate::job::settings::{BakeSettings, RunOptions};
+use crate::job::settings::{BakeSettings, Device, RunOptions};
 use crate::shard::partial::{self, FORMAT, PartialHeader};
 use crate::shard::{Shard, assign, identity, page_cost, partial_path, read_set};
 use crate::stage::StageTimer;
@@ -55,7 +55,11 @@ pub fn bake_shard(
         .collect();
     let mine = assign(&costs, shard.count).swap_remove(shard.index as usize);
     let done = job.pages(&level, &mine, &mut |_, _, _| {})?;
-    let (settings, settings_bytes) = settings_json(s);
+    // Where this shard traced is part of its fingerprint: shards of one
+    // level traced on different devices are refused at the merge.
+    let mut recorded = s.clone();
+    recorded.device = level.backend.device();
+    let (settings, settings_bytes) = settings_json(&recorded);
     let header = PartialHeader {
         format: FORMAT,
         identity: identity(&bytes, &settings_bytes, shard.count, level.page_count()),
@@ -113,7 +117,10 @@ pub fn merge(output: &Path) -> Result<Merged> {
     }
     check_output(&input, output)?;
     let run = RunOptions::QUIET;
-    let mut job = Job::new(&scene, &settings, &run, StageTimer::new());
+    // The merge casts no ray: its level traces on the CPU.
+    let mut on_cpu = settings.clone();
+    on_cpu.device = Device::Cpu;
+    let mut job = Job::new(&scene, &on_cpu, &run, StageTimer::new());
     let level = job.level()?;
     if level.page_count() != page_count {
         return Err(set.refuse(format!(

@@ -107,6 +107,12 @@ pub trait Query: Sync {
     fn answer(tracer: &Tracer, rays: &RayBatch, i: usize) -> Self::Answer;
     /// A blocked ray's answer.
     const BLOCKED: Self::Answer;
+    /// Answers the whole batch on the GPU, if this query runs there and it
+    /// has not failed; false leaves it to the CPU.
+    #[cfg(feature = "gpu")]
+    fn on_gpu(_gpu: &super::gpu::Attached, _rays: &RayBatch, _out: &mut Vec<Self::Answer>) -> bool {
+        false
+    }
 }
 
 /// Whether anything is hit in (0, t_max] (a blocked ray: true).
@@ -118,6 +124,10 @@ impl Query for Occlusion {
     #[inline]
     fn answer(tracer: &Tracer, rays: &RayBatch, i: usize) -> bool {
         tracer.occluded(rays.origins[i], rays.directions[i], rays.t_max[i])
+    }
+    #[cfg(feature = "gpu")]
+    fn on_gpu(gpu: &super::gpu::Attached, rays: &RayBatch, out: &mut Vec<bool>) -> bool {
+        gpu.occluded_batch(rays, out)
     }
 }
 
@@ -139,6 +149,12 @@ impl Tracer {
     /// Every ray's answer to `Q`, into `out` (cleared first), in the
     /// batch's order. Pieces of a large batch are traced in parallel.
     pub fn trace_batch<Q: Query>(&self, rays: &RayBatch, out: &mut Vec<Q::Answer>) {
+        #[cfg(feature = "gpu")]
+        if let Some(gpu) = self.gpu()
+            && Q::on_gpu(gpu, rays, out)
+        {
+            return;
+        }
         out.clear();
         out.resize(rays.len(), Q::Answer::default());
         let piece = |first: usize, out: &mut [Q::Answer]| {

@@ -56,6 +56,9 @@ pub struct Tracer {
     tris: Vec<RtTriangle>,
     /// Per triangle in leaf order: single-sided (its back face is "inside").
     single_sided: Vec<bool>,
+    /// The GPU backend answering the occlusion batches, if attached.
+    #[cfg(feature = "gpu")]
+    gpu: Option<super::gpu::Attached>,
 }
 
 /// obvhs's CWBVH node test clamps a box's entry distance to an absolute
@@ -65,10 +68,12 @@ pub struct Tracer {
 /// under a slab in Sponza. Rays therefore start this far behind their origin,
 /// with t_min at the same distance: boxes are entered after the clamp, and
 /// the triangle test's t_min still excludes everything behind the origin.
-const BOX_EPSILON_SHIFT: f32 = 2e-4;
+pub(crate) const BOX_EPSILON_SHIFT: f32 = 2e-4;
 
+/// The ray the CPU traces for a query from `origin` along `dir` up to
+/// `t_max` (the GPU backend traces the same one).
 #[inline]
-fn shifted_ray(origin: Vec3, dir: Vec3, t_max: f32) -> Ray {
+pub(crate) fn shifted_ray(origin: Vec3, dir: Vec3, t_max: f32) -> Ray {
     let dir = positive_zeros(dir);
     Ray::new(
         (origin - dir * BOX_EPSILON_SHIFT).into(),
@@ -102,6 +107,8 @@ impl Tracer {
                 bvh: None,
                 tris: Vec::new(),
                 single_sided: Vec::new(),
+                #[cfg(feature = "gpu")]
+                gpu: None,
             };
         }
         let tris: Vec<Triangle> = occluders
@@ -132,7 +139,42 @@ impl Tracer {
             bvh: Some(bvh),
             tris: rt,
             single_sided: sides,
+            #[cfg(feature = "gpu")]
+            gpu: None,
         }
+    }
+
+    /// Hands the occlusion batches ([`Tracer::occluded_batch`]) to `gpu`, which holds
+    /// the same occluders; the per-ray queries and closest hits stay here.
+    #[cfg(feature = "gpu")]
+    pub fn attach_gpu(&mut self, gpu: super::gpu::GpuTracer) {
+        self.gpu = Some(super::gpu::Attached::new(gpu));
+    }
+
+    /// The attached GPU backend, if any.
+    #[cfg(feature = "gpu")]
+    pub(crate) fn gpu(&self) -> Option<&super::gpu::Attached> {
+        self.gpu.as_ref()
+    }
+
+    /// The name of the GPU adapter answering the occlusion batches, if one
+    /// is attached.
+    pub fn gpu_adapter(&self) -> Option<&str> {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &self.gpu {
+            return Some(&g.adapter().name);
+        }
+        None
+    }
+
+    /// Why the GPU stopped answering, if a batch failed (the rest were
+    /// traced here).
+    pub fn gpu_failure(&self) -> Option<&str> {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &self.gpu {
+            return g.failure();
+        }
+        None
     }
 
     /// Whether any occluder triangle is single-sided: without one, no

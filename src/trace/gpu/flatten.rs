@@ -8,7 +8,10 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3A;
-use obvhs::{BvhBuildParams, bvh2::builder::build_bvh2_from_tris, triangle::Triangle};
+use obvhs::{
+    BvhBuildParams, bvh2::builder::build_bvh2_from_tris, rt_triangle::RtTriangle,
+    triangle::Triangle,
+};
 use std::time::Duration;
 
 /// A node as the shader reads it (`Node` in occlusion.wgsl): its box, and
@@ -23,12 +26,29 @@ pub struct GpuNode {
     pub count: u32,
 }
 
-/// A triangle as the shader reads it (`Tri`): three vertices, each padded
-/// to 16 bytes.
+/// A triangle as the shader reads it (`Tri`): obvhs's `RtTriangle`, the
+/// CPU backend's, value for value (its base vertex, edges `v0 - v1` and
+/// `v2 - v0`, and their cross product), each padded to 16 bytes, so that
+/// the shader's test rounds as the CPU's does.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuTri {
-    pub v: [[f32; 4]; 3],
+    pub v0: [f32; 4],
+    pub e1: [f32; 4],
+    pub e2: [f32; 4],
+    pub ng: [f32; 4],
+}
+
+impl GpuTri {
+    /// The triangle's three vertices (`v0`, `v0 - e1`, `v0 + e2`).
+    pub fn vertices(&self) -> [[f32; 3]; 3] {
+        let (v0, e1, e2) = (self.v0, self.e1, self.e2);
+        [
+            [v0[0], v0[1], v0[2]],
+            [v0[0] - e1[0], v0[1] - e1[1], v0[2] - e1[2]],
+            [v0[0] + e2[0], v0[1] + e2[1], v0[2] + e2[2]],
+        ]
+    }
 }
 
 /// The flattened tree.
@@ -74,10 +94,13 @@ pub fn flatten(occluders: &[[Vec3A; 3]]) -> Option<FlatBvh> {
         .primitive_indices
         .iter()
         .map(|&i| {
-            let t = &tris[i as usize];
+            let t = RtTriangle::from(&tris[i as usize]);
             let p = |v: Vec3A| [v.x, v.y, v.z, 0.0];
             GpuTri {
-                v: [p(t.v0), p(t.v1), p(t.v2)],
+                v0: p(t.v0),
+                e1: p(t.e1),
+                e2: p(t.e2),
+                ng: p(t.ng),
             }
         })
         .collect();

@@ -20,6 +20,7 @@ mod flatten;
 pub use flatten::{FlatBvh, GpuNode, GpuTri, flatten};
 
 use super::RayBatch;
+use super::bvh::shifted_ray;
 use crate::error::{Error, Result};
 use glam::Vec3A;
 use wgpu::util::DeviceExt;
@@ -54,6 +55,47 @@ pub struct AdapterName {
     pub software: bool,
 }
 
+/// A [`GpuTracer`] behind a CPU tracer ([`super::Tracer::attach_gpu`]):
+/// answers its occlusion batches until one fails, then leaves every later
+/// batch to the CPU and keeps the first failure for the job to report.
+pub struct Attached {
+    tracer: GpuTracer,
+    failure: std::sync::OnceLock<String>,
+}
+
+impl Attached {
+    pub fn new(tracer: GpuTracer) -> Attached {
+        Attached {
+            tracer,
+            failure: std::sync::OnceLock::new(),
+        }
+    }
+
+    pub fn adapter(&self) -> &AdapterName {
+        self.tracer.adapter()
+    }
+
+    /// The first failure, if a batch failed.
+    pub fn failure(&self) -> Option<&str> {
+        self.failure.get().map(String::as_str)
+    }
+
+    /// Answers `rays` into `out` on the GPU: false (nothing answered) once
+    /// a batch has failed.
+    pub fn occluded_batch(&self, rays: &RayBatch, out: &mut Vec<bool>) -> bool {
+        if self.failure.get().is_some() {
+            return false;
+        }
+        match self.tracer.occluded_batch(rays, out) {
+            Ok(()) => true,
+            Err(e) => {
+                let _ = self.failure.set(e.to_string());
+                false
+            }
+        }
+    }
+}
+
 /// The occluders on the GPU, and what traces rays against them.
 pub struct GpuTracer {
     device: wgpu::Device,
@@ -63,6 +105,8 @@ pub struct GpuTracer {
     nodes: wgpu::Buffer,
     tris: wgpu::Buffer,
     adapter: AdapterName,
+    /// One dispatch at a time (see [`GpuTracer::dispatch`]).
+    busy: std::sync::Mutex<()>,
 }
 
 /// The first adapter `which` admits: hardware ones before software ones.
@@ -200,6 +244,7 @@ impl GpuTracer {
             nodes,
             tris,
             adapter: name,
+            busy: std::sync::Mutex::new(()),
         }))
     }
 
@@ -220,9 +265,15 @@ impl GpuTracer {
         while start < rays.len() {
             let end = (start + RAYS_PER_DISPATCH).min(rays.len());
             packed.clear();
+            // The CPU's shifted ray (bvh.rs), rounded here as there; a
+            // blocked ray keeps its negative end.
             packed.extend((start..end).map(|i| {
-                let (o, d) = (origins[i], directions[i]);
-                [o.x, o.y, o.z, t_max[i], d.x, d.y, d.z, 0.0]
+                if rays.is_blocked(i) {
+                    return [0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0];
+                }
+                let r = shifted_ray(origins[i], directions[i], t_max[i]);
+                let (o, d) = (r.origin, r.direction);
+                [o.x, o.y, o.z, r.tmax, d.x, d.y, d.z, 0.0]
             }));
             let answers = self.dispatch(&packed)?;
             out.extend(answers.iter().map(|&a| a != 0));
@@ -234,6 +285,7 @@ impl GpuTracer {
     /// One dispatch: uploads the rays, runs the shader, reads the answers
     /// back.
     fn dispatch(&self, rays: &[[f32; 8]]) -> Result<Vec<u32>> {
+        let _one = self.busy.lock().unwrap_or_else(|e| e.into_inner());
         let n = rays.len();
         let device = &self.device;
         let ray_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

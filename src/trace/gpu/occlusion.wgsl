@@ -3,16 +3,22 @@
 //
 // In: nodes (box, then first child or first triangle, and the leaf's
 // triangle count: 0 for an inner node, whose children are adjacent),
-// triangles in leaf order (three vertices), rays (origin and t_max, unit
-// direction). Out: per ray 1 if a triangle (either face) is hit at a
-// distance in (0, t_max], else 0; a ray with t_max < 0 is blocked (1,
+// triangles in leaf order (obvhs's RtTriangle), rays as the CPU traces
+// them (origin already shifted back by SHIFT, the end t_max + SHIFT, unit
+// direction). Out: per ray 1 if a triangle (either face) is hit at t in
+// [SHIFT, end], else 0; a ray whose end is negative is blocked (1,
 // untraced).
 //
-// The triangle test is watertight (Woop, Benthin and Wald 2013, "Watertight
-// Ray/Triangle Intersection"): a ray through a shared edge or vertex hits
-// one of the triangles around it, never slips between them. The box test
-// widens each box's exit by 2 gamma_3 (Ize 2013, "Robust BVH Ray
-// Traversal") so rounding never culls a box the ray enters.
+// The triangle test is the CPU backend's (obvhs's RtTriangle::intersect,
+// both faces, on the triangle's precomputed edges and normal), on the ray
+// the CPU traces: started SHIFT behind its origin with t in [SHIFT,
+// t_max + SHIFT] (see BOX_EPSILON_SHIFT in bvh.rs; the host shifts it, so
+// its rounding is the CPU's). A receiver's origin
+// can lie on another surface's plane within rounding (a texel on the edge
+// between a wall and the floor): there the answer is decided by rounding,
+// and the same operations on the same values decide it as the CPU does.
+// The box test widens each box's exit by 2 gamma_3 (Ize 2013, "Robust BVH
+// Ray Traversal") so rounding never culls a box the ray enters.
 
 struct Node {
     lo: vec3<f32>,
@@ -23,13 +29,14 @@ struct Node {
 
 struct Tri {
     v0: vec4<f32>,
-    v1: vec4<f32>,
-    v2: vec4<f32>,
+    e1: vec4<f32>, // v0 - v1
+    e2: vec4<f32>, // v2 - v0
+    ng: vec4<f32>, // e1 x e2
 };
 
 struct Ray {
-    origin: vec4<f32>, // xyz, w: t_max
-    dir: vec4<f32>,    // xyz unit, w unused
+    origin: vec4<f32>, // xyz: shifted back by SHIFT; w: t_max + SHIFT
+    dir: vec4<f32>,    // xyz unit (no -0.0), w unused
 };
 
 struct Params {
@@ -49,48 +56,31 @@ const STACK: u32 = 64u;
 // 1 + 2 gamma_3, gamma_n = n eps / (1 - n eps), eps = 2^-24.
 const EXIT_WIDEN: f32 = 1.0000004;
 
-fn component(v: vec3<f32>, k: u32) -> f32 {
-    if k == 0u {
-        return v.x;
-    }
-    if k == 1u {
-        return v.y;
-    }
-    return v.z;
+// The CPU backend's shift (BOX_EPSILON_SHIFT in bvh.rs).
+const SHIFT: f32 = 2e-4;
+
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    // In the CPU's order: (x + y) + z.
+    return (a.x * b.x + a.y * b.y) + a.z * b.z;
 }
 
-// Whether the triangle is hit at t in (0, t_max], both faces.
-fn hit_triangle(
-    tri: Tri, o: vec3<f32>, kx: u32, ky: u32, kz: u32, s: vec3<f32>, t_max: f32,
-) -> bool {
-    let a = tri.v0.xyz - o;
-    let b = tri.v1.xyz - o;
-    let c = tri.v2.xyz - o;
-    let az = component(a, kz);
-    let bz = component(b, kz);
-    let cz = component(c, kz);
-    let ax = component(a, kx) - s.x * az;
-    let ay = component(a, ky) - s.y * az;
-    let bx = component(b, kx) - s.x * bz;
-    let by = component(b, ky) - s.y * bz;
-    let cx = component(c, kx) - s.x * cz;
-    let cy = component(c, ky) - s.y * cz;
-    let u = cx * by - cy * bx;
-    let v = ax * cy - ay * cx;
-    let w = bx * ay - by * ax;
-    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+// Whether the triangle is hit at t in [t_min, t_max] (either face):
+// obvhs's RtTriangle::intersect.
+fn hit_triangle(tri: Tri, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> bool {
+    let c = tri.v0.xyz - o;
+    // d x c as glam computes it.
+    let r = vec3<f32>(d.y * c.z - c.y * d.z, d.z * c.x - c.z * d.x, d.x * c.y - c.x * d.y);
+    let inv_det = 1.0 / dot3(tri.ng.xyz, d);
+    let u = dot3(r, tri.e2.xyz) * inv_det;
+    let v = dot3(r, tri.e1.xyz) * inv_det;
+    let w = 1.0 - u - v;
+    // u, v, w >= 0 with their sign bits (a -0.0 fails, as on the CPU).
+    let signs = bitcast<u32>(u) | bitcast<u32>(v) | bitcast<u32>(w);
+    if inv_det == 0.0 || (signs & 0x80000000u) != 0u {
         return false;
     }
-    let det = u + v + w;
-    if det == 0.0 {
-        return false;
-    }
-    let t_scaled = u * s.z * az + v * s.z * bz + w * s.z * cz;
-    // Both faces: compare with det's sign taken out.
-    let sgn = select(1.0, -1.0, det < 0.0);
-    let t = t_scaled * sgn;
-    let d = det * sgn;
-    return t > 0.0 && t <= t_max * d;
+    let t = dot3(tri.ng.xyz, c) * inv_det;
+    return t >= t_min && t <= t_max;
 }
 
 @compute @workgroup_size(64)
@@ -100,31 +90,15 @@ fn occluded(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let ray = rays[i];
-    let t_max = ray.origin.w;
-    if t_max < 0.0 {
+    let t_end = ray.origin.w;
+    if t_end < 0.0 {
         hits[i] = 1u;
         return;
     }
-    let o = ray.origin.xyz;
     let d = ray.dir.xyz;
-    // The watertight test's frame: z along the direction's largest
-    // component, x and y swapped to keep the winding.
+    let o = ray.origin.xyz;
+    let t_min = SHIFT;
     let ad = abs(d);
-    var kz = 2u;
-    if ad.x > ad.y && ad.x > ad.z {
-        kz = 0u;
-    } else if ad.y > ad.z {
-        kz = 1u;
-    }
-    var kx = (kz + 1u) % 3u;
-    var ky = (kx + 1u) % 3u;
-    let dz = component(d, kz);
-    if dz < 0.0 {
-        let k = kx;
-        kx = ky;
-        ky = k;
-    }
-    let s = vec3<f32>(component(d, kx) / dz, component(d, ky) / dz, 1.0 / dz);
     // Zero components get a tiny stand-in: finite slabs, same side.
     let tiny = vec3<f32>(1e-20);
     let safe = select(d, select(tiny, -tiny, d < vec3<f32>(0.0)), ad < tiny);
@@ -140,11 +114,11 @@ fn occluded(@builtin(global_invocation_id) id: vec3<u32>) {
         let near = min(t0, t1);
         let far = max(t0, t1);
         let enter = max(max(near.x, near.y), max(near.z, 0.0));
-        let leave = min(min(far.x, far.y), min(far.z, t_max)) * EXIT_WIDEN;
+        let leave = min(min(far.x, far.y), min(far.z, t_end)) * EXIT_WIDEN;
         if enter <= leave {
             if n.count > 0u {
                 for (var k = 0u; k < n.count; k++) {
-                    if hit_triangle(tris[n.first + k], o, kx, ky, kz, s, t_max) {
+                    if hit_triangle(tris[n.first + k], o, d, t_min, t_end) {
                         hits[i] = 1u;
                         return;
                     }
