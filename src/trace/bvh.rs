@@ -83,6 +83,29 @@ pub(crate) fn shifted_ray(origin: Vec3, dir: Vec3, t_max: f32) -> Ray {
     )
 }
 
+/// The occluders as obvhs's triangles.
+pub(crate) fn triangles(occluders: &[[Vec3A; 3]]) -> Vec<Triangle> {
+    occluders
+        .iter()
+        .map(|t| Triangle {
+            v0: t[0],
+            v1: t[1],
+            v2: t[2],
+        })
+        .collect()
+}
+
+/// obvhs's build preset for `count` triangles (both backends' trees):
+/// `very_slow` (slower build, faster traversal) pays off at millions of
+/// rays, which a scene of this size gets.
+pub(crate) fn build_params(count: usize) -> BvhBuildParams {
+    if count > 20_000 {
+        BvhBuildParams::very_slow_build()
+    } else {
+        BvhBuildParams::medium_build()
+    }
+}
+
 /// Turns -0.0 components into +0.0: obvhs picks the traversal octant from
 /// the sign bits while its inverse direction treats -0.0 as +0.0, and a
 /// ray along -z with -0.0 x and y components then misses everything.
@@ -111,20 +134,8 @@ impl Tracer {
                 gpu: None,
             };
         }
-        let tris: Vec<Triangle> = occluders
-            .iter()
-            .map(|t| Triangle {
-                v0: t[0],
-                v1: t[1],
-                v2: t[2],
-            })
-            .collect();
-        let params = if tris.len() > 20_000 {
-            BvhBuildParams::very_slow_build()
-        } else {
-            BvhBuildParams::medium_build()
-        };
-        let bvh = build_cwbvh_from_tris(&tris, params, &mut Duration::default());
+        let tris = triangles(occluders);
+        let bvh = build_cwbvh_from_tris(&tris, build_params(tris.len()), &mut Duration::default());
         let rt = bvh
             .primitive_indices
             .iter()

@@ -6,12 +6,10 @@
 //! the triangles in leaf order, and the tree's depth, which bounds the
 //! shader's stack.
 
+use crate::trace::bvh::{build_params, triangles};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3A;
-use obvhs::{
-    BvhBuildParams, bvh2::builder::build_bvh2_from_tris, rt_triangle::RtTriangle,
-    triangle::Triangle,
-};
+use obvhs::{bvh2::builder::build_bvh2_from_tris, rt_triangle::RtTriangle};
 use std::time::Duration;
 
 /// A node as the shader reads it (`Node` in occlusion.wgsl): its box, and
@@ -66,20 +64,8 @@ pub fn flatten(occluders: &[[Vec3A; 3]]) -> Option<FlatBvh> {
     if occluders.is_empty() {
         return None;
     }
-    let tris: Vec<Triangle> = occluders
-        .iter()
-        .map(|t| Triangle {
-            v0: t[0],
-            v1: t[1],
-            v2: t[2],
-        })
-        .collect();
-    let params = if tris.len() > 20_000 {
-        BvhBuildParams::very_slow_build()
-    } else {
-        BvhBuildParams::medium_build()
-    };
-    let bvh = build_bvh2_from_tris(&tris, params, &mut Duration::default());
+    let tris = triangles(occluders);
+    let bvh = build_bvh2_from_tris(&tris, build_params(tris.len()), &mut Duration::default());
     let nodes: Vec<GpuNode> = bvh
         .nodes
         .iter()

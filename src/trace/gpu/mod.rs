@@ -23,6 +23,7 @@ use super::RayBatch;
 use super::bvh::shifted_ray;
 use crate::error::{Error, Result};
 use glam::Vec3A;
+use std::sync::{Arc, Mutex};
 use wgpu::util::DeviceExt;
 
 /// Rays per dispatch: bounds the GPU memory a batch takes (32 bytes of
@@ -105,8 +106,12 @@ pub struct GpuTracer {
     nodes: wgpu::Buffer,
     tris: wgpu::Buffer,
     adapter: AdapterName,
-    /// One dispatch at a time (see [`GpuTracer::dispatch`]).
-    busy: std::sync::Mutex<()>,
+    /// One dispatch at a time: GPU memory holds one dispatch's buffers.
+    busy: Mutex<()>,
+    /// The first error wgpu reported outside a call's result (a refused
+    /// shader, a validation error, a lost device), instead of its default
+    /// of panicking.
+    errors: Arc<Mutex<Option<String>>>,
 }
 
 /// The first adapter `which` admits: hardware ones before software ones.
@@ -171,6 +176,17 @@ impl GpuTracer {
             ..Default::default()
         }))
         .map_err(|e| Error::Gpu(format!("{}: no device: {e}", name.name)))?;
+        let errors = Arc::new(Mutex::new(None));
+        let first = |sink: &Arc<Mutex<Option<String>>>, what: String| {
+            let mut slot = sink.lock().unwrap_or_else(|e| e.into_inner());
+            slot.get_or_insert(what);
+        };
+        let sink = errors.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| first(&sink, e.to_string())));
+        let sink = errors.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            first(&sink, format!("device lost ({reason:?}): {message}"))
+        });
         let limit = device.limits().max_storage_buffer_binding_size as usize;
         let node_bytes = std::mem::size_of_val(flat.nodes.as_slice());
         let tri_bytes = std::mem::size_of_val(flat.tris.as_slice());
@@ -236,7 +252,7 @@ impl GpuTracer {
             compilation_options: Default::default(),
             cache: None,
         });
-        Ok(Some(GpuTracer {
+        let tracer = GpuTracer {
             device,
             queue,
             pipeline,
@@ -244,8 +260,20 @@ impl GpuTracer {
             nodes,
             tris,
             adapter: name,
-            busy: std::sync::Mutex::new(()),
-        }))
+            busy: Mutex::new(()),
+            errors,
+        };
+        tracer.check()?;
+        Ok(Some(tracer))
+    }
+
+    /// The first error wgpu reported, if any, as this tracer's failure.
+    fn check(&self) -> Result<()> {
+        let slot = self.errors.lock().unwrap_or_else(|e| e.into_inner());
+        match &*slot {
+            Some(e) => Err(Error::Gpu(format!("{}: {e}", self.adapter.name))),
+            None => Ok(()),
+        }
     }
 
     /// The adapter this tracer runs on.
@@ -286,6 +314,7 @@ impl GpuTracer {
     /// back.
     fn dispatch(&self, rays: &[[f32; 8]]) -> Result<Vec<u32>> {
         let _one = self.busy.lock().unwrap_or_else(|e| e.into_inner());
+        self.check()?;
         let n = rays.len();
         let device = &self.device;
         let ray_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -365,6 +394,7 @@ impl GpuTracer {
             })?;
         let answers = bytemuck::cast_slice(&slice.get_mapped_range()).to_vec();
         readback.unmap();
+        self.check()?;
         Ok(answers)
     }
 }
