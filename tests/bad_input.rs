@@ -22,6 +22,14 @@ fn pack(json: &Value, bin: &[u8]) -> Vec<u8> {
     aobake::gltf::container::glb_bytes(json, bin)
 }
 
+/// The valid base scene written as `dir/in.glb`.
+fn base_input(dir: &std::path::Path) -> std::path::PathBuf {
+    let (j, b) = base();
+    let input = dir.join("in.glb");
+    std::fs::write(&input, pack(&j, &b)).unwrap();
+    input
+}
+
 /// Byte offset of accessor `a`'s data in the BIN chunk.
 fn accessor_offset(json: &Value, a: usize) -> usize {
     let v = json["accessors"][a]["bufferView"].as_u64().unwrap() as usize;
@@ -432,10 +440,8 @@ fn missing_external_buffer_is_named() {
 
 #[test]
 fn unwritable_output_leaves_nothing() {
-    let (j, b) = base();
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.glb");
-    std::fs::write(&input, pack(&j, &b)).unwrap();
+    let input = base_input(dir.path());
     // A directory that does not exist.
     let missing = dir.path().join("no/such/dir/out.glb");
     assert_refused(&input, &missing, &[], "no/such/dir");
@@ -449,10 +455,8 @@ fn unwritable_output_leaves_nothing() {
 
 #[test]
 fn output_equal_to_input_is_refused_even_through_another_path() {
-    let (j, b) = base();
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.glb");
-    std::fs::write(&input, pack(&j, &b)).unwrap();
+    let input = base_input(dir.path());
     let before = std::fs::read(&input).unwrap();
     let other = dir.path().join(".").join("sub/../in.glb");
     std::fs::create_dir(dir.path().join("sub")).unwrap();
@@ -497,10 +501,8 @@ fn memory_estimate_refuses_huge_atlases_before_allocating() {
 #[cfg(not(feature = "gpu"))]
 #[test]
 fn a_gpu_without_the_backend_is_refused() {
-    let (j, b) = base();
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.glb");
-    std::fs::write(&input, pack(&j, &b)).unwrap();
+    let input = base_input(dir.path());
     let out = dir.path().join("out.glb");
     assert_refused(
         &input,
@@ -512,10 +514,8 @@ fn a_gpu_without_the_backend_is_refused() {
 
 #[test]
 fn bad_options_are_refused_in_one_line() {
-    let (j, b) = base();
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.glb");
-    std::fs::write(&input, pack(&j, &b)).unwrap();
+    let input = base_input(dir.path());
     let out = dir.path().join("out.glb");
     for (args, expect) in [
         (vec!["--resolution", "8"], "--resolution 8 is outside"),

@@ -9,7 +9,7 @@
 mod common;
 
 use aobake::trace::gpu::{Adapters, GpuTracer};
-use aobake::trace::{RayBatch, Tracer};
+use aobake::trace::{Closest, Hit, RayBatch, Tracer};
 use glam::{Vec3, Vec3A};
 
 /// A tracer on any adapter, or `None` (with the note) where there is none.
@@ -137,19 +137,13 @@ fn edge_and_vertex_rays_are_answered_as_on_the_cpu() {
     );
 }
 
-/// A real scene's rays answered as the CPU answers them: rays from points
-/// inside the flight helmet's bounds in every direction, at max distances
-/// from contact to past the scene; at least 99.99% agree (the rest lie
-/// within a hair of a triangle's edge or of the max distance, where the two
-/// triangle tests round differently).
-#[test]
-fn a_scene_occludes_as_on_the_cpu() {
+/// Random rays in the flight helmet: from points inside its bounds in
+/// every direction, at max distances from contact to past the scene, each
+/// with a depth to cut a closest hit at (the max distance, none, or in
+/// between).
+fn helmet_rays(n: usize) -> (Vec<[Vec3A; 3]>, RayBatch) {
     let scene = common::bundled_scene("flight_helmet.glb");
     let geometry = scene.bake_geometry().unwrap();
-    let Some(gpu) = gpu(&geometry.occluders) else {
-        return;
-    };
-    let cpu = Tracer::new(&geometry.occluders);
     let mut rays = RayBatch::new();
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut next = || {
@@ -158,7 +152,6 @@ fn a_scene_occludes_as_on_the_cpu() {
         state ^= state << 17;
         (state >> 40) as f32 / (1u64 << 24) as f32
     };
-    let n = 200_000;
     for _ in 0..n {
         let o = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 0.6;
         let z = 2.0 * next() - 1.0;
@@ -166,8 +159,23 @@ fn a_scene_occludes_as_on_the_cpu() {
         let r = (1.0 - z * z).max(0.0).sqrt();
         let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
         let t_max = [0.001, 0.01, 0.1, 1.0, 3.0][(next() * 5.0) as usize % 5];
-        rays.push(o, d, t_max);
+        let depth = [t_max, 0.0, t_max * next()][(next() * 3.0) as usize % 3];
+        rays.push_within(o, d, t_max, depth);
     }
+    (geometry.occluders, rays)
+}
+
+/// A real scene's rays answered as the CPU answers them: at least 99.99%
+/// agree (the rest lie within a hair of a triangle's edge or of the max
+/// distance, where the two triangle tests round differently).
+#[test]
+fn a_scene_occludes_as_on_the_cpu() {
+    let (occluders, rays) = helmet_rays(200_000);
+    let Some(gpu) = gpu(&occluders) else {
+        return;
+    };
+    let cpu = Tracer::new(&occluders);
+    let n = rays.len();
     let (mut on_gpu, mut on_cpu) = (Vec::new(), Vec::new());
     gpu.occluded_batch(&rays, &mut on_gpu).unwrap();
     cpu.occluded_batch(&rays, &mut on_cpu);
@@ -181,6 +189,155 @@ fn a_scene_occludes_as_on_the_cpu() {
     // Both answers occur often: the comparison means something.
     assert!(occluded > n / 10 && occluded < n * 9 / 10, "{occluded}");
     assert!(differ * 10_000 <= n, "{differ} of {n} differ");
+}
+
+/// How many of two answers to `rays`' closest hits (each naming `cpu`'s
+/// triangles) differ where a pass reads them: the distance cut at the
+/// ray's depth, and for a ray traced uncut the triangle's normal and
+/// whether its back face was hit. (Not the triangle's index: the tree
+/// builder splits large triangles into several leaves, and beyond a cut
+/// the triangle is whichever the traversal met first, on either.)
+fn differing(cpu: &Tracer, rays: &RayBatch, a: &[Option<Hit>], b: &[Option<Hit>]) -> usize {
+    let (t_max, depth, dirs) = (rays.t_max(), rays.depths(), rays.directions());
+    (0..rays.len())
+        .filter(|&i| {
+            let read = |h: &Option<Hit>| h.map(|h| h.distance_within(t_max[i], depth[i]));
+            let face =
+                |h: &Option<Hit>| h.map(|h| (cpu.hit_normal(h), cpu.is_back_face(h, dirs[i])));
+            read(&a[i]) != read(&b[i]) || (depth[i] >= t_max[i] && face(&a[i]) != face(&b[i]))
+        })
+        .count()
+}
+
+/// Closest hits through a tracer with the GPU attached, as the passes ask
+/// for them: the same hit as the CPU's (parameter and triangle, so the
+/// same distance at every depth, back face and normal) on at least 99.99%
+/// of the helmet's rays, cut at their depths; and on two parallel quads
+/// the closed form: the nearer quad's distance below the depth, the depth
+/// beyond it.
+#[test]
+fn closest_hits_are_the_cpus() {
+    let mut quads = quad(0.1);
+    quads.extend(quad(0.3));
+    let Some(on_quads) = gpu(&quads) else { return };
+    let mut tracer = Tracer::new(&quads);
+    tracer.attach_gpu(on_quads);
+    let mut rays = RayBatch::new();
+    let d = Vec3::new(0.1, 0.2, 1.0).normalize();
+    let o = Vec3::new(0.05, -0.03, 0.0);
+    for depth in [1.0, 0.5, 0.05, 0.0] {
+        rays.push_within(o, d, 1.0, depth);
+    }
+    rays.push_within(o, d, 0.09, 0.05);
+    rays.push_within(o, -d, 1.0, 1.0);
+    rays.push_blocked(-d);
+    let mut hits = Vec::new();
+    tracer.trace_batch::<Closest>(&rays, &mut hits);
+    assert_eq!(tracer.gpu_failure(), None);
+    let near = 0.1 / d.z;
+    let read: Vec<Option<f32>> = (hits.iter().zip(rays.depths()).zip(rays.t_max()))
+        .map(|((h, &depth), &t_max)| h.map(|h| h.distance_within(t_max, depth)))
+        .collect();
+    for (got, want) in read
+        .iter()
+        .zip([Some(near), Some(near), Some(0.05), Some(0.0)])
+    {
+        let (got, want) = (got.unwrap(), want.unwrap());
+        assert!((got - want).abs() < 1e-6, "{got} for {want}");
+    }
+    assert_eq!(&read[4..], &[None, None, None]);
+
+    let (occluders, rays) = helmet_rays(100_000);
+    let Some(on_helmet) = gpu(&occluders) else {
+        return;
+    };
+    let cpu = Tracer::with_sides(&occluders, &vec![true; occluders.len()]);
+    let mut tracer = Tracer::with_sides(&occluders, &vec![true; occluders.len()]);
+    tracer.attach_gpu(on_helmet);
+    let (mut on_gpu, mut on_cpu) = (Vec::new(), Vec::new());
+    tracer.trace_batch::<Closest>(&rays, &mut on_gpu);
+    cpu.trace_batch::<Closest>(&rays, &mut on_cpu);
+    assert_eq!(tracer.gpu_failure(), None);
+    let n = rays.len();
+    let hit = on_cpu.iter().filter(|h| h.is_some()).count();
+    let back = (on_cpu.iter().zip(rays.directions()))
+        .filter(|(h, d)| h.is_some_and(|h| cpu.is_back_face(h, **d)))
+        .count();
+    let differ = differing(&cpu, &rays, &on_gpu, &on_cpu);
+    eprintln!("{n} rays, {hit} hit ({back} back faces), {differ} answered otherwise");
+    assert!(hit > n / 10 && hit < n * 9 / 10, "{hit}");
+    assert!(back > n / 100, "{back}");
+    assert!(differ * 10_000 <= n, "{differ} of {n} differ");
+}
+
+/// A device lost mid-bake: the batch it failed on and every later one are
+/// answered by the CPU (the answers as if it never failed), and the tracer
+/// says why.
+#[test]
+fn a_lost_device_leaves_the_rest_to_the_cpu() {
+    let (occluders, rays) = helmet_rays(20_000);
+    let Some(mut lost) = gpu(&occluders) else {
+        return;
+    };
+    lost.lose_device_after(2);
+    let cpu = Tracer::new(&occluders);
+    let mut tracer = Tracer::new(&occluders);
+    tracer.attach_gpu(lost);
+    for round in 0..5 {
+        let (mut on_gpu, mut on_cpu) = (Vec::new(), Vec::new());
+        tracer.occluded_batch(&rays, &mut on_gpu);
+        cpu.occluded_batch(&rays, &mut on_cpu);
+        let differ = on_gpu.iter().zip(&on_cpu).filter(|(a, b)| a != b).count();
+        assert!(differ * 10_000 <= rays.len(), "round {round}: {differ}");
+        let (mut closest_gpu, mut closest_cpu) = (Vec::new(), Vec::new());
+        tracer.trace_batch::<Closest>(&rays, &mut closest_gpu);
+        cpu.trace_batch::<Closest>(&rays, &mut closest_cpu);
+        let differ = differing(&cpu, &rays, &closest_gpu, &closest_cpu);
+        assert!(differ * 10_000 <= rays.len(), "round {round}: {differ}");
+        assert_eq!(tracer.gpu_failure().is_some(), round >= 1, "round {round}");
+    }
+    let why = tracer.gpu_failure().unwrap();
+    assert!(why.contains("lost") || why.contains("Lost"), "{why}");
+}
+
+/// `--device gpu` whose device is lost mid-bake stops with a one-line
+/// error and writes nothing (the input untouched).
+#[test]
+fn a_gpu_bake_whose_device_is_lost_writes_nothing() {
+    if gpu(&quad(0.2)).is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let input = common::asset_path("cornell_box.glb");
+    let before = std::fs::read(&input).unwrap();
+    let out = dir.path().join("out.glb");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_aobake"))
+        .arg(&input)
+        .arg(&out)
+        .args([
+            "--resolution",
+            "64",
+            "--rays",
+            "16",
+            "--device",
+            "gpu",
+            "-q",
+        ])
+        .env(aobake::trace::gpu::LOSE_AFTER_VAR, "1")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{err}");
+    // aobake's own lines (the Vulkan loader may add its own).
+    let ours: Vec<&str> = err.lines().filter(|l| l.starts_with("aobake")).collect();
+    assert_eq!(ours.len(), 1, "{err}");
+    let err = ours[0];
+    assert!(
+        err.contains("lost") && err.contains("nothing written"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    assert_eq!(std::fs::read(&input).unwrap(), before);
 }
 
 /// Which adapters count: a software one (lavapipe) is no hardware GPU, so
@@ -244,8 +401,8 @@ fn the_flattened_tree_holds_every_triangle_once_inside_its_boxes() {
     assert!(aobake::trace::gpu::flatten(&[]).is_none());
 }
 
-/// A whole bake with `--device gpu` against `--device cpu`: the occlusion
-/// batches on lavapipe, the rest as on the CPU. The adaptive method's and
+/// A whole bake with `--device gpu` against `--device cpu`: every batch
+/// (occlusion and closest hits) on lavapipe. The adaptive method's and
 /// Monte Carlo's AO and 9 SH within 1/255 of the CPU bake's on at least
 /// 99.9% of texels, and the report names the adapter; `auto` takes no
 /// software adapter.
@@ -267,6 +424,12 @@ fn a_gpu_bake_is_the_cpu_bake() {
         let on_gpu = aobake::bake_scene(&scene, &settings(aobake::Device::Gpu)).unwrap();
         let adapter = on_gpu.report.backend.adapter.clone();
         assert!(adapter.is_some(), "{:?}", on_gpu.report.backend);
+        // Traced there to the end (no batch left to the CPU).
+        assert!(
+            on_gpu.report.warnings.is_empty(),
+            "{:?}",
+            on_gpu.report.warnings
+        );
         assert_eq!(cpu.report.backend.adapter, None);
         let (a, b) = (&cpu.lightmap, &on_gpu.lightmap);
         assert_eq!((a.width, a.height), (b.width, b.height));

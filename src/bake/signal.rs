@@ -30,9 +30,8 @@
 use crate::atlas::Receivers;
 use crate::bake::ReceiverRays;
 use crate::geometry::ReceiverMesh;
-use crate::trace::Tracer;
+use crate::trace::{Closest, Tracer, for_each_receiver_query};
 use glam::Vec3;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// How one page's texels are shared among the meshes (`--texel-budget`):
@@ -54,6 +53,9 @@ impl TexelBudget {
         *self == TexelBudget::Uniform
     }
 }
+
+/// Points to a batch of rays.
+const CHUNK: usize = 256;
 
 /// Rays per pre-pass point.
 pub const RAYS: u32 = 16;
@@ -117,21 +119,31 @@ pub fn mesh_scales(
     }
     let seed = seed ^ SIGNAL_SEED;
     let floor = 0.5 * texel;
-    // Per point, 1 / z^2 with z its nearest hit (floored at half a texel).
-    let inverse: Vec<f32> = (0..points.len())
-        .into_par_iter()
-        .map(|i| {
+    // Per point, z its nearest hit: each ray traced for its exact closest
+    // hit and read as the query cut at the running z would answer
+    // ([`crate::trace::Hit::distance_within`]), so the rays go as one batch.
+    let mut z = vec![max_distance; points.len()];
+    for_each_receiver_query::<Closest, f32>(
+        tracer,
+        &mut z,
+        CHUNK,
+        |i, _, batch| {
             let rays = ReceiverRays::new(&r, i, seed);
-            let mut z = max_distance;
             for k in 0..RAYS {
-                let d = rays.direction(k);
-                if let Some(hit) = tracer.trace_closest(rays.origin, d, max_distance, z) {
-                    z = z.min(hit.distance_within(max_distance, z));
-                }
+                batch.push(rays.origin, rays.direction(k), max_distance);
             }
-            let z = z.max(floor);
-            1.0 / (z * z)
-        })
+        },
+        |_, z, _, hits| {
+            for hit in hits.iter().flatten() {
+                *z = z.min(hit.distance_within(max_distance, *z));
+            }
+        },
+        &|_| {},
+    );
+    // 1 / z^2, z floored at half a texel.
+    let inverse: Vec<f32> = z
+        .iter()
+        .map(|&z| 1.0 / (z.max(floor) * z.max(floor)))
         .collect();
     // Per mesh, the area-weighted mean of 1/z^2, to the fourth root.
     let mut sum = vec![(0.0f64, 0.0f64); meshes.len()];

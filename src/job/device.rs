@@ -21,7 +21,7 @@ use serde::Serialize;
 /// What a bake traces on.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Backend {
-    /// The GPU adapter answering the occlusion batches ("NVIDIA H200",
+    /// The GPU adapter answering the ray batches ("NVIDIA H200",
     /// "llvmpipe (...)"); `None`: the CPU traces every ray.
     pub adapter: Option<String>,
     /// Why `auto` traced on the CPU, if it looked for a GPU.

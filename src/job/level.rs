@@ -120,8 +120,9 @@ impl Level {
         // distance).
         let signal =
             (s.texel_budget == TexelBudget::Signal && s.uv == UvSource::Generate).then(|| {
-                let tracer =
+                let mut tracer =
                     Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
+                let backend = device::attach(&mut tracer, &geometry.occluders, s.device)?;
                 let texel = match s.size {
                     AtlasSize::Resolution(r) => {
                         let area: f64 = (geometry.receivers.iter()).map(|m| m.surface_area()).sum();
@@ -132,8 +133,9 @@ impl Level {
                 let d = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
                 let scales =
                     signal::mesh_scales(&geometry.receivers, &tracer, d, texel as f32, s.seed);
-                (tracer, scales)
+                Ok::<_, Error>(((tracer, backend), scales))
             });
+        let signal = signal.transpose()?;
         if signal.is_some() {
             timer.lap("signal pre-pass");
         }
@@ -214,10 +216,17 @@ impl Level {
                 MAX_BAKE_BYTES >> 30
             )));
         }
-        let mut tracer = early_tracer.unwrap_or_else(|| {
-            Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided)
-        });
-        let backend = device::attach(&mut tracer, &geometry.occluders, s.device)?;
+        // The GPU, where one is used, was attached before the signal
+        // pre-pass, which traces on it too.
+        let (tracer, backend) = match early_tracer {
+            Some(early) => early,
+            None => {
+                let mut tracer =
+                    Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
+                let backend = device::attach(&mut tracer, &geometry.occluders, s.device)?;
+                (tracer, backend)
+            }
+        };
         if run.progress {
             eprintln!("aobake: {}", backend.line());
         }

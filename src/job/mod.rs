@@ -157,13 +157,14 @@ impl<'a> Job<'a> {
                 s,
             ));
             keep(page, passes, out);
-        }
-        // A GPU that failed mid-bake left the rest to the CPU: an error
-        // where the GPU was asked for, a warning (in write) for auto.
-        if let Some(failure) = level.tracer.gpu_failure()
-            && s.device == Device::Gpu
-        {
-            return Err(Error::Gpu(format!("{failure}; nothing written")));
+            // A GPU that failed mid-bake left the rest to the CPU: an
+            // error where the GPU was asked for (at once, no page more),
+            // a warning (in write) for auto.
+            if let Some(failure) = level.tracer.gpu_failure()
+                && s.device == Device::Gpu
+            {
+                return Err(Error::Gpu(format!("{failure}; nothing written")));
+            }
         }
         Ok(done)
     }

@@ -134,7 +134,7 @@ pub struct Report {
     pub seed: u64,
     pub threads: usize,
     /// Where the rays were traced (`--device`): the GPU adapter, if one
-    /// answered the occlusion batches.
+    /// answered the ray batches.
     pub backend: super::device::Backend,
     /// Every stage in order, each timed once (`sparse pass` and `filter
     /// pass` for the sheared method, `trace` for Monte Carlo).

@@ -32,6 +32,12 @@ pub struct RayBatch {
 /// is split into pieces of this many, traced in parallel.
 const PIECE: usize = 4096;
 
+/// Receivers to a batch at least when a GPU answers them: some hundred
+/// thousand rays a dispatch at the passes' tens to hundreds of rays per
+/// receiver, a few tens of MB of rays per worker.
+#[cfg(feature = "gpu")]
+const GPU_RECEIVERS: usize = 2048;
+
 impl RayBatch {
     pub fn new() -> RayBatch {
         RayBatch::default()
@@ -93,6 +99,11 @@ impl RayBatch {
         &self.t_max
     }
 
+    /// Per ray, the depth a closest-hit query may cut it at.
+    pub fn depths(&self) -> &[f32] {
+        &self.depth
+    }
+
     /// Whether ray `i` is blocked (occluded without tracing).
     #[inline]
     pub fn is_blocked(&self, i: usize) -> bool {
@@ -107,10 +118,15 @@ pub trait Query: Sync {
     fn answer(tracer: &Tracer, rays: &RayBatch, i: usize) -> Self::Answer;
     /// A blocked ray's answer.
     const BLOCKED: Self::Answer;
-    /// Answers the whole batch on the GPU, if this query runs there and it
-    /// has not failed; false leaves it to the CPU.
+    /// Answers the whole batch on `tracer`'s GPU, if this query runs there
+    /// and it has not failed; false leaves it to the CPU.
     #[cfg(feature = "gpu")]
-    fn on_gpu(_gpu: &super::gpu::Attached, _rays: &RayBatch, _out: &mut Vec<Self::Answer>) -> bool {
+    fn on_gpu(
+        _tracer: &Tracer,
+        _gpu: &super::gpu::Attached,
+        _rays: &RayBatch,
+        _out: &mut Vec<Self::Answer>,
+    ) -> bool {
         false
     }
 }
@@ -126,7 +142,12 @@ impl Query for Occlusion {
         tracer.occluded(rays.origins[i], rays.directions[i], rays.t_max[i])
     }
     #[cfg(feature = "gpu")]
-    fn on_gpu(gpu: &super::gpu::Attached, rays: &RayBatch, out: &mut Vec<bool>) -> bool {
+    fn on_gpu(
+        _: &Tracer,
+        gpu: &super::gpu::Attached,
+        rays: &RayBatch,
+        out: &mut Vec<bool>,
+    ) -> bool {
         gpu.occluded_batch(rays, out)
     }
 }
@@ -143,6 +164,15 @@ impl Query for Closest {
         let (o, d) = (rays.origins[i], rays.directions[i]);
         tracer.trace_closest(o, d, rays.t_max[i], rays.depth[i])
     }
+    #[cfg(feature = "gpu")]
+    fn on_gpu(
+        tracer: &Tracer,
+        gpu: &super::gpu::Attached,
+        rays: &RayBatch,
+        out: &mut Vec<Option<Hit>>,
+    ) -> bool {
+        gpu.closest_batch(tracer, rays, out)
+    }
 }
 
 impl Tracer {
@@ -151,7 +181,7 @@ impl Tracer {
     pub fn trace_batch<Q: Query>(&self, rays: &RayBatch, out: &mut Vec<Q::Answer>) {
         #[cfg(feature = "gpu")]
         if let Some(gpu) = self.gpu()
-            && Q::on_gpu(gpu, rays, out)
+            && Q::on_gpu(self, gpu, rays, out)
         {
             return;
         }
@@ -211,6 +241,13 @@ pub fn for_each_receiver_query<Q: Query, S: Send>(
     progress: &(dyn Fn(u64) + Sync),
 ) {
     let chunk = chunk.max(1);
+    // On a GPU a dispatch costs a round trip whatever its size: batches
+    // of many receivers keep it busy (the answers do not depend on it).
+    #[cfg(feature = "gpu")]
+    let chunk = match tracer.gpu() {
+        Some(_) => chunk.max(GPU_RECEIVERS),
+        None => chunk,
+    };
     states.par_chunks_mut(chunk).enumerate().for_each_init(
         || (RayBatch::new(), Vec::new(), Vec::new()),
         |(batch, ends, answers), (c, states)| {

@@ -4,8 +4,8 @@
 //! occlusion (any hit closer than `t_max`) and closest-hit queries. Both
 //! faces occlude. Built with obvhs as a compressed wide BVH (CWBVH) with
 //! triangles stored in leaf order, so traversal has no indirection. The
-//! passes reach it through [`super::batch`]; the per-ray queries stay for
-//! the passes whose next ray depends on the last answer.
+//! passes reach it through [`super::batch`], which hands whole batches to
+//! the GPU backend instead where one is attached.
 
 use glam::{Vec3, Vec3A};
 use obvhs::{
@@ -33,7 +33,7 @@ impl Hit {
     /// the shifted ray. (min/max, not clamp: no panic on a NaN or negative
     /// t_max.)
     #[inline]
-    fn cap(t_max: f32, depth: f32) -> f32 {
+    pub(crate) fn cap(t_max: f32, depth: f32) -> f32 {
         depth.min(t_max).max(0.0) + BOX_EPSILON_SHIFT
     }
 
@@ -56,7 +56,7 @@ pub struct Tracer {
     tris: Vec<RtTriangle>,
     /// Per triangle in leaf order: single-sided (its back face is "inside").
     single_sided: Vec<bool>,
-    /// The GPU backend answering the occlusion batches, if attached.
+    /// The GPU backend answering the batches, if attached.
     #[cfg(feature = "gpu")]
     gpu: Option<super::gpu::Attached>,
 }
@@ -155,11 +155,13 @@ impl Tracer {
         }
     }
 
-    /// Hands the occlusion batches ([`Tracer::occluded_batch`]) to `gpu`, which holds
-    /// the same occluders; the per-ray queries and closest hits stay here.
+    /// Hands the batches ([`Tracer::trace_batch`]: occlusion and closest
+    /// hits) to `gpu`, which holds the same occluders; the per-ray queries
+    /// stay here.
     #[cfg(feature = "gpu")]
     pub fn attach_gpu(&mut self, gpu: super::gpu::GpuTracer) {
-        self.gpu = Some(super::gpu::Attached::new(gpu));
+        let order = self.bvh.as_ref().map_or(&[][..], |b| &b.primitive_indices);
+        self.gpu = Some(super::gpu::Attached::new(gpu, order));
     }
 
     /// The attached GPU backend, if any.
@@ -168,7 +170,7 @@ impl Tracer {
         self.gpu.as_ref()
     }
 
-    /// The name of the GPU adapter answering the occlusion batches, if one
+    /// The name of the GPU adapter answering the batches, if one
     /// is attached.
     pub fn gpu_adapter(&self) -> Option<&str> {
         #[cfg(feature = "gpu")]
@@ -239,6 +241,29 @@ impl Tracer {
         .then_some(Hit {
             shifted: hit.t,
             triangle: hit.primitive_id,
+        })
+    }
+
+    /// The hit [`Tracer::trace_closest`] returns when `triangle` (in leaf
+    /// order) is the closest: its test on the same ray, cut at `depth`;
+    /// `None` where the test misses it.
+    #[cfg(feature = "gpu")]
+    pub(crate) fn retest(
+        &self,
+        triangle: u32,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+        depth: f32,
+    ) -> Option<Hit> {
+        let ray = shifted_ray(origin, dir, t_max);
+        let t = self.tris.get(triangle as usize)?.intersect(&ray);
+        // The traversal's rules: a miss is infinite, a hit beyond the cap
+        // one at it, and a hit counts below the ray's end only.
+        let t = t.is_finite().then(|| t.min(Hit::cap(t_max, depth)))?;
+        (t < ray.tmax).then_some(Hit {
+            shifted: t,
+            triangle,
         })
     }
 

@@ -11,10 +11,10 @@
 //!   tracer decides how a batch is traced, so another backend (a GPU) fits
 //!   behind the same calls.
 //! - `bvh`: the CPU backend, [`Tracer`]: one obvhs CWBVH, answering one
-//!   ray at a time, which the batches use and the passes whose next ray
-//!   depends on the last answer still call directly.
-//! - `gpu` (feature `gpu`): the GPU backend, a wgpu compute shader over
-//!   obvhs's BVH2 answering occlusion batches.
+//!   ray at a time, which the batches use.
+//! - `gpu` (feature `gpu`): the GPU backend, wgpu compute shaders over
+//!   obvhs's BVH2 answering whole batches (occlusion and closest hits) when
+//!   attached to the tracer.
 //!
 //! Here too: robust ray origins ([`offset_origin`]).
 

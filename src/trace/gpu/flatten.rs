@@ -3,8 +3,8 @@
 //! In: bake-space occluder triangles. Out: [`FlatBvh`]: obvhs's BVH2 (a
 //! binary tree, the layout a compute shader walks with a short stack: the
 //! `tray_racing` benchmark's compute traversal uses it) as 32-byte nodes,
-//! the triangles in leaf order, and the tree's depth, which bounds the
-//! shader's stack.
+//! the triangles in leaf order with their indices among the occluders, and
+//! the tree's depth, which bounds the shader's stack.
 
 use crate::trace::bvh::{build_params, triangles};
 use bytemuck::{Pod, Zeroable};
@@ -12,7 +12,7 @@ use glam::Vec3A;
 use obvhs::{bvh2::builder::build_bvh2_from_tris, rt_triangle::RtTriangle};
 use std::time::Duration;
 
-/// A node as the shader reads it (`Node` in occlusion.wgsl): its box, and
+/// A node as the shader reads it (`Node` in traverse.wgsl): its box, and
 /// either its first child (`count` 0; the second is the next node) or its
 /// first triangle and triangle count (a leaf).
 #[repr(C)]
@@ -53,6 +53,8 @@ impl GpuTri {
 pub struct FlatBvh {
     pub nodes: Vec<GpuNode>,
     pub tris: Vec<GpuTri>,
+    /// Per triangle in leaf order, its index among the occluders given.
+    pub primitives: Vec<u32>,
     /// The longest root-to-leaf path, in nodes below the root: the most
     /// entries the traversal's stack holds.
     pub depth: u32,
@@ -91,7 +93,12 @@ pub fn flatten(occluders: &[[Vec3A; 3]]) -> Option<FlatBvh> {
         })
         .collect();
     let depth = depth(&nodes);
-    Some(FlatBvh { nodes, tris, depth })
+    Some(FlatBvh {
+        nodes,
+        tris,
+        primitives: bvh.primitive_indices,
+        depth,
+    })
 }
 
 /// The tree's depth below the root (0 for a root leaf), walked without

@@ -1,0 +1,419 @@
+//! The device side: a [`GpuTracer`] holds the occluders' tree in GPU
+//! memory and answers batches of rays with the shaders of `traverse.wgsl`.
+//!
+//! In: bake-space occluder triangles, an adapter choice, then
+//! [`RayBatch`]es. Out: per ray, whether it is occluded, or its closest hit
+//! as the shifted ray's parameter and the triangle in the tree's leaf
+//! order ([`GpuTracer::primitives`] maps it back to the occluders).
+//!
+//! A batch goes in dispatches of at most [`RAYS_PER_DISPATCH`] rays, one
+//! dispatch at a time, through buffers kept from one dispatch to the next
+//! (grown to the largest dispatch seen, never past that bound): the GPU
+//! memory a bake takes is the tree plus one dispatch's rays and answers,
+//! whatever the batches' sizes. While one worker's batch is on the GPU the
+//! others build and read theirs, which is where the CPU's work overlaps
+//! the GPU's.
+
+use super::{
+    AdapterName, Adapters, RAYS_PER_DISPATCH, STACK_DEPTH, WORKGROUP, flatten, pick_adapter,
+};
+use crate::error::{Error, Result};
+use crate::trace::RayBatch;
+use crate::trace::bvh::{Hit, shifted_ray};
+use glam::Vec3A;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use wgpu::util::DeviceExt;
+
+/// Bytes of one ray as the shader reads it (`Ray` in traverse.wgsl).
+const RAY_BYTES: u64 = 32;
+/// Bytes of the largest answer (a closest hit: its t, its triangle and a
+/// tie's).
+const ANSWER_BYTES: u64 = 12;
+
+/// How long a dispatch may take before the GPU counts as failed (hung):
+/// far beyond what 2^20 rays take even on a software adapter, so only a
+/// GPU that stopped answering reaches it, and the bake goes on without it
+/// instead of waiting forever.
+const DISPATCH_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(120);
+
+/// No triangle (`NONE` in traverse.wgsl).
+const NONE: u32 = u32::MAX;
+
+/// A closest hit as the GPU found it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuHit {
+    /// The shifted ray's parameter (see [`crate::trace::Hit`]).
+    pub shifted: f32,
+    /// The triangle, in the tree's leaf order ([`GpuTracer::primitives`]).
+    pub triangle: u32,
+    /// Another triangle hit at exactly that parameter, below the cut: which
+    /// one is "the" hit is then the traversal order's choice.
+    pub tie: Option<u32>,
+}
+
+/// For tests of a device lost mid-bake: the tracer destroys its own
+/// device after this many dispatches, which wgpu reports as a lost device.
+pub const LOSE_AFTER_VAR: &str = "AOBAKE_GPU_LOSE_AFTER";
+
+/// The occluders on the GPU, and what traces rays against them.
+pub struct GpuTracer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    occluded: wgpu::ComputePipeline,
+    closest: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    nodes: wgpu::Buffer,
+    tris: wgpu::Buffer,
+    /// Per triangle in leaf order, its index among the occluders.
+    primitives: Vec<u32>,
+    adapter: AdapterName,
+    /// The dispatch buffers; the lock makes it one dispatch at a time.
+    slots: Mutex<Option<Slots>>,
+    /// The first error wgpu reported outside a call's result (a refused
+    /// shader, a validation error, a lost device), instead of its default
+    /// of panicking.
+    errors: Arc<Mutex<Option<String>>>,
+    dispatches: AtomicU64,
+    lose_after: Option<u64>,
+}
+
+/// One dispatch's buffers, for up to `capacity` rays.
+struct Slots {
+    capacity: usize,
+    rays: wgpu::Buffer,
+    answers: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    params: wgpu::Buffer,
+    group: wgpu::BindGroup,
+}
+
+/// Which shader a dispatch runs.
+#[derive(Clone, Copy, PartialEq)]
+enum Kind {
+    Occluded,
+    Closest,
+}
+
+impl Kind {
+    fn answer_words(self) -> usize {
+        match self {
+            Kind::Occluded => 1,
+            Kind::Closest => 3,
+        }
+    }
+}
+
+impl GpuTracer {
+    /// Uploads `occluders` (bake space) to the first adapter `which`
+    /// admits; `Ok(None)` without triangles (nothing to trace: no ray is
+    /// ever occluded).
+    pub fn new(occluders: &[[Vec3A; 3]], which: Adapters) -> Result<Option<GpuTracer>> {
+        let Some(flat) = flatten(occluders) else {
+            return Ok(None);
+        };
+        if flat.depth > STACK_DEPTH {
+            return Err(Error::Gpu(format!(
+                "the BVH is {} levels deep, past the shader's stack of {STACK_DEPTH}",
+                flat.depth
+            )));
+        }
+        let (adapter, name) = pick_adapter(which)?;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("aobake"),
+            required_limits: wgpu::Limits {
+                max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
+                max_buffer_size: adapter.limits().max_buffer_size,
+                ..wgpu::Limits::downlevel_defaults()
+            },
+            ..Default::default()
+        }))
+        .map_err(|e| Error::Gpu(one_line(&format!("{}: no device: {e}", name.name))))?;
+        let errors = Arc::new(Mutex::new(None));
+        let first = |sink: &Arc<Mutex<Option<String>>>, what: String| {
+            let mut slot = sink.lock().unwrap_or_else(|e| e.into_inner());
+            slot.get_or_insert_with(|| one_line(&what));
+        };
+        let sink = errors.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| first(&sink, e.to_string())));
+        let sink = errors.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            let why = if message.is_empty() {
+                String::new()
+            } else {
+                format!(": {message}")
+            };
+            first(&sink, format!("device lost ({reason:?}){why}"))
+        });
+        let limit = device.limits().max_storage_buffer_binding_size as usize;
+        let node_bytes = std::mem::size_of_val(flat.nodes.as_slice());
+        let tri_bytes = std::mem::size_of_val(flat.tris.as_slice());
+        if node_bytes.max(tri_bytes) > limit {
+            return Err(Error::Gpu(format!(
+                "{}: the scene's BVH ({node_bytes} bytes of nodes, {tri_bytes} of triangles) is past its storage binding limit of {limit}",
+                name.name
+            )));
+        }
+        let upload = |label, contents: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let nodes = upload("nodes", bytemuck::cast_slice(&flat.nodes));
+        let tris = upload("triangles", bytemuck::cast_slice(&flat.tris));
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("traverse.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("traverse.wgsl").into()),
+        });
+        let buffer = |binding: u32, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("traverse"),
+            entries: &[
+                buffer(0, storage(true)),
+                buffer(1, storage(true)),
+                buffer(2, storage(true)),
+                buffer(3, storage(false)),
+                buffer(4, wgpu::BufferBindingType::Uniform),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("traverse"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let (occluded, closest) = (pipeline("occluded"), pipeline("closest"));
+        let lose_after = std::env::var(LOSE_AFTER_VAR)
+            .ok()
+            .and_then(|v| v.parse().ok());
+        let tracer = GpuTracer {
+            device,
+            queue,
+            occluded,
+            closest,
+            layout,
+            nodes,
+            tris,
+            primitives: flat.primitives,
+            adapter: name,
+            slots: Mutex::new(None),
+            errors,
+            dispatches: AtomicU64::new(0),
+            lose_after,
+        };
+        tracer.check()?;
+        Ok(Some(tracer))
+    }
+
+    /// The first error wgpu reported, if any, as this tracer's failure.
+    fn check(&self) -> Result<()> {
+        let slot = self.errors.lock().unwrap_or_else(|e| e.into_inner());
+        match &*slot {
+            Some(e) => Err(Error::Gpu(format!("{}: {e}", self.adapter.name))),
+            None => Ok(()),
+        }
+    }
+
+    /// For tests of a lost device: the tracer destroys its own device
+    /// before its dispatch number `dispatches` (from 0), as
+    /// [`LOSE_AFTER_VAR`] asks from the environment.
+    #[doc(hidden)]
+    pub fn lose_device_after(&mut self, dispatches: u64) {
+        self.lose_after = Some(dispatches);
+    }
+
+    /// The adapter this tracer runs on.
+    pub fn adapter(&self) -> &AdapterName {
+        &self.adapter
+    }
+
+    /// Per triangle in the tree's leaf order (as [`GpuTracer::closest_batch`]
+    /// names them), its index among the occluders given.
+    pub fn primitives(&self) -> &[u32] {
+        &self.primitives
+    }
+
+    /// Per ray of `rays`, whether anything is hit in (0, t_max] (a blocked
+    /// ray: true), into `out` (cleared first), in the batch's order.
+    pub fn occluded_batch(&self, rays: &RayBatch, out: &mut Vec<bool>) -> Result<()> {
+        out.clear();
+        out.reserve(rays.len());
+        self.batch(rays, Kind::Occluded, |answers| {
+            out.extend(answers.iter().map(|&a| a != 0))
+        })
+    }
+
+    /// Per ray of `rays`, its closest hit in (0, t_max] cut at its depth
+    /// ([`crate::trace::Tracer::trace_closest`]), `None` for no hit (a
+    /// blocked ray: none), into `out` (cleared first).
+    pub fn closest_batch(&self, rays: &RayBatch, out: &mut Vec<Option<GpuHit>>) -> Result<()> {
+        out.clear();
+        out.reserve(rays.len());
+        self.batch(rays, Kind::Closest, |answers| {
+            out.extend(answers.chunks_exact(3).map(|a| {
+                (a[1] != NONE).then(|| GpuHit {
+                    shifted: f32::from_bits(a[0]),
+                    triangle: a[1],
+                    tie: (a[2] != NONE).then_some(a[2]),
+                })
+            }))
+        })
+    }
+
+    /// `rays` in dispatches of at most [`RAYS_PER_DISPATCH`], each one's
+    /// answers handed to `read` in order.
+    fn batch(&self, rays: &RayBatch, kind: Kind, mut read: impl FnMut(&[u32])) -> Result<()> {
+        let mut packed: Vec<[f32; 8]> = Vec::with_capacity(rays.len().min(RAYS_PER_DISPATCH));
+        let mut start = 0;
+        while start < rays.len() {
+            let end = (start + RAYS_PER_DISPATCH).min(rays.len());
+            packed.clear();
+            packed.extend((start..end).map(|i| pack(rays, i, kind)));
+            self.dispatch(&packed, kind, &mut read)?;
+            start = end;
+        }
+        Ok(())
+    }
+
+    /// One dispatch: uploads the rays, runs the shader, reads the answers
+    /// back into `read`.
+    fn dispatch(&self, rays: &[[f32; 8]], kind: Kind, read: &mut impl FnMut(&[u32])) -> Result<()> {
+        let mut slots = self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        if self.lose_after == Some(self.dispatches.fetch_add(1, Ordering::Relaxed)) {
+            self.device.destroy();
+        }
+        self.check()?;
+        let n = rays.len();
+        if slots.as_ref().is_none_or(|s| s.capacity < n) {
+            *slots = Some(self.slots(n.next_power_of_two().min(RAYS_PER_DISPATCH)));
+        }
+        let s = slots.as_ref().expect("made above");
+        let queue = &self.queue;
+        queue.write_buffer(&s.rays, 0, bytemuck::cast_slice(rays));
+        queue.write_buffer(&s.params, 0, bytemuck::cast_slice(&[n as u32, 0, 0, 0]));
+        let bytes = (n * kind.answer_words() * 4) as u64;
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(match kind {
+                Kind::Occluded => &self.occluded,
+                Kind::Closest => &self.closest,
+            });
+            pass.set_bind_group(0, &s.group, &[]);
+            pass.dispatch_workgroups(n.div_ceil(WORKGROUP) as u32, 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&s.answers, 0, &s.readback, 0, bytes);
+        let submitted = queue.submit([encoder.finish()]);
+        let slice = s.readback.slice(..bytes);
+        let (send, receive) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = send.send(r);
+        });
+        // What wgpu reported on its own (a lost device) says more than
+        // the failed call it caused.
+        let failed = |e: &dyn std::fmt::Display| match self.check() {
+            Err(reported) => reported,
+            Ok(()) => Error::Gpu(one_line(&format!("{}: {e}", self.adapter.name))),
+        };
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(submitted),
+                timeout: Some(DISPATCH_TIMEOUT),
+            })
+            .map_err(|e| failed(&e))?;
+        receive
+            .recv()
+            .map_err(|e| failed(&e))?
+            .map_err(|e| failed(&format!("reading the answers back: {e}")))?;
+        read(bytemuck::cast_slice(&slice.get_mapped_range()));
+        s.readback.unmap();
+        self.check()
+    }
+
+    /// Buffers for dispatches of up to `capacity` rays.
+    fn slots(&self, capacity: usize) -> Slots {
+        let device = &self.device;
+        let buffer = |label, size: u64, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        let n = capacity as u64;
+        let rays = buffer("rays", n * RAY_BYTES, U::STORAGE | U::COPY_DST);
+        let answers = buffer("answers", n * ANSWER_BYTES, U::STORAGE | U::COPY_SRC);
+        let readback = buffer("readback", n * ANSWER_BYTES, U::MAP_READ | U::COPY_DST);
+        let params = buffer("params", 16, U::UNIFORM | U::COPY_DST);
+        fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry {
+                binding,
+                resource: buffer.as_entire_binding(),
+            }
+        }
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("traverse"),
+            layout: &self.layout,
+            entries: &[
+                entry(0, &self.nodes),
+                entry(1, &self.tris),
+                entry(2, &rays),
+                entry(3, &answers),
+                entry(4, &params),
+            ],
+        });
+        Slots {
+            capacity,
+            rays,
+            answers,
+            readback,
+            params,
+            group,
+        }
+    }
+}
+
+/// `message` on one line (wgpu's span several).
+fn one_line(message: &str) -> String {
+    message.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Ray `i` of `rays` as the shader reads it: the CPU's shifted ray
+/// (bvh.rs), rounded here as there, and for a closest hit the cap; a
+/// blocked ray keeps its negative end.
+fn pack(rays: &RayBatch, i: usize, kind: Kind) -> [f32; 8] {
+    if rays.is_blocked(i) {
+        return [0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0];
+    }
+    let t_max = rays.t_max()[i];
+    let r = shifted_ray(rays.origins()[i], rays.directions()[i], t_max);
+    let cap = match kind {
+        Kind::Occluded => 0.0,
+        Kind::Closest => Hit::cap(t_max, rays.depths()[i]),
+    };
+    let (o, d) = (r.origin, r.direction);
+    [o.x, o.y, o.z, r.tmax, d.x, d.y, d.z, cap]
+}
