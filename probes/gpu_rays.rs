@@ -1,8 +1,9 @@
 //! The GPU backend against the CPU's on a scene's own rays: the Monte
 //! Carlo rays its bake casts (16 per texel at every k-th texel of page 0,
 //! seed 1, up to 2M), answered as occlusion and as closest hits by the CPU
-//! tracer on all threads and by the GPU (feature `gpu`), timed as one
-//! batch each after a warm-up.
+//! tracer on all threads and by the GPU (feature `gpu`), in batches of
+//! 2^17 rays traced in parallel as a bake's workers cast them, timed after
+//! a warm-up.
 //!
 //!     cargo run --release --features gpu --example gpu_rays -- SCENE.glb
 //!         [--resolution 1024] [--rays 2000000] [--hardware]
@@ -20,19 +21,47 @@ use aobake::trace::gpu::{Adapters, GpuTracer};
 use aobake::trace::{Closest, Hit, Occlusion, Query, RayBatch, Tracer};
 use aobake::{BakeSettings, Device};
 use glam::Vec3;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// Rays per texel, as a Monte Carlo bake's first ones.
 const PER_TEXEL: u32 = 16;
 
-/// Seconds of `tracer` answering `rays` as `Q` (the second of two runs),
-/// and the answers.
+/// Rays to a batch, as a bake's workers cast them (a few thousand
+/// receivers' rays each), the batches traced in parallel.
+const BATCH: usize = 1 << 17;
+
+/// Seconds of `tracer` answering `rays` as `Q` in batches of [`BATCH`]
+/// traced in parallel (the second of two runs), and the answers in order.
 fn timed<Q: Query>(tracer: &Tracer, rays: &RayBatch) -> (f64, Vec<Q::Answer>) {
-    let mut out = Vec::new();
-    tracer.trace_batch::<Q>(rays, &mut out);
+    let batches: Vec<RayBatch> = (0..rays.len())
+        .step_by(BATCH)
+        .map(|start| {
+            let mut batch = RayBatch::new();
+            for i in start..(start + BATCH).min(rays.len()) {
+                if rays.is_blocked(i) {
+                    batch.push_blocked(rays.directions()[i]);
+                } else {
+                    let (o, d) = (rays.origins()[i], rays.directions()[i]);
+                    batch.push_within(o, d, rays.t_max()[i], rays.depths()[i]);
+                }
+            }
+            batch
+        })
+        .collect();
+    let trace = || -> Vec<Vec<Q::Answer>> {
+        (batches.par_iter())
+            .map(|b| {
+                let mut out = Vec::new();
+                tracer.trace_batch::<Q>(b, &mut out);
+                out
+            })
+            .collect()
+    };
+    let _ = trace();
     let t = Instant::now();
-    tracer.trace_batch::<Q>(rays, &mut out);
-    (t.elapsed().as_secs_f64(), out)
+    let answers = trace();
+    (t.elapsed().as_secs_f64(), answers.concat())
 }
 
 fn main() {

@@ -32,11 +32,11 @@ pub struct RayBatch {
 /// is split into pieces of this many, traced in parallel.
 const PIECE: usize = 4096;
 
-/// Receivers to a batch at least when a GPU answers them: some hundred
-/// thousand rays a dispatch at the passes' tens to hundreds of rays per
-/// receiver, a few tens of MB of rays per worker.
+/// Receivers to a batch at least when a GPU answers them: tens of
+/// thousands of rays a dispatch in a pre-pass round, up to a million in
+/// the adaptive pass (32 MB of rays per worker at its most).
 #[cfg(feature = "gpu")]
-const GPU_RECEIVERS: usize = 2048;
+const GPU_RECEIVERS: usize = 4096;
 
 impl RayBatch {
     pub fn new() -> RayBatch {

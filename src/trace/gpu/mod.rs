@@ -8,8 +8,8 @@
 //! parameter and triangle as the CPU's traversal finds.
 //!
 //! - `flatten`: obvhs's BVH2 as the shader's nodes and triangles.
-//! - `tracer`: [`GpuTracer`], the device, its pipelines and buffers, one
-//!   dispatch at a time.
+//! - `tracer`: [`GpuTracer`], the device, its pipelines and the buffers
+//!   of the dispatches in flight.
 //! - `traverse.wgsl`: the traversal (a short stack, the nearer child first)
 //!   and the CPU's triangle test.
 //!
@@ -32,8 +32,8 @@ pub use tracer::{GpuHit, GpuTracer, LOSE_AFTER_VAR};
 use super::{Hit, RayBatch};
 use crate::error::{Error, Result};
 
-/// Rays per dispatch: bounds the GPU memory a batch takes (32 bytes of
-/// ray, 12 of answer and 12 of its copy to read back each: 56 MiB)
+/// Rays per dispatch: bounds the GPU memory a dispatch takes (32 bytes
+/// of ray, 12 of answer and 12 of its copy to read back each: 56 MiB)
 /// whatever the batch's size.
 pub const RAYS_PER_DISPATCH: usize = 1 << 20;
 

@@ -6,13 +6,13 @@
 //! as the shifted ray's parameter and the triangle in the tree's leaf
 //! order ([`GpuTracer::primitives`] maps it back to the occluders).
 //!
-//! A batch goes in dispatches of at most [`RAYS_PER_DISPATCH`] rays, one
-//! dispatch at a time, through buffers kept from one dispatch to the next
-//! (grown to the largest dispatch seen, never past that bound): the GPU
-//! memory a bake takes is the tree plus one dispatch's rays and answers,
-//! whatever the batches' sizes. While one worker's batch is on the GPU the
-//! others build and read theirs, which is where the CPU's work overlaps
-//! the GPU's.
+//! A batch goes in dispatches of at most [`RAYS_PER_DISPATCH`] rays, at
+//! most [`IN_FLIGHT`] at a time, each through a set of buffers kept from
+//! one dispatch to the next (grown to the largest dispatch seen, never past
+//! that bound): the GPU memory a bake takes is the tree plus those sets,
+//! whatever the batches' sizes. Workers' dispatches overlap each other's
+//! uploads and read-backs, and while the GPU traces, the other workers
+//! build and read their batches on the CPU.
 
 use super::{
     AdapterName, Adapters, RAYS_PER_DISPATCH, STACK_DEPTH, WORKGROUP, flatten, pick_adapter,
@@ -21,6 +21,7 @@ use crate::error::{Error, Result};
 use crate::trace::RayBatch;
 use crate::trace::bvh::{Hit, shifted_ray};
 use glam::Vec3A;
+use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use wgpu::util::DeviceExt;
@@ -36,6 +37,13 @@ const ANSWER_BYTES: u64 = 12;
 /// GPU that stopped answering reaches it, and the bake goes on without it
 /// instead of waiting forever.
 const DISPATCH_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(120);
+
+/// Dispatches in flight at once, each with its own buffers: while one
+/// worker's rays are uploaded or its answers read back, others' run.
+const IN_FLIGHT: usize = 4;
+
+/// How often a dispatch in flight asks wgpu whether it is done.
+const POLL_INTERVAL: std::time::Duration = std::time::Duration::from_micros(50);
 
 /// No triangle (`NONE` in traverse.wgsl).
 const NONE: u32 = u32::MAX;
@@ -68,12 +76,16 @@ pub struct GpuTracer {
     /// Per triangle in leaf order, its index among the occluders.
     primitives: Vec<u32>,
     adapter: AdapterName,
-    /// The dispatch buffers; the lock makes it one dispatch at a time.
-    slots: Mutex<Option<Slots>>,
+    /// The dispatch buffers, [`IN_FLIGHT`] sets: a dispatch holds one set's
+    /// lock from its upload to its read-back.
+    slots: Vec<Mutex<Option<Slots>>>,
+    /// The set the next dispatch tries first.
+    next_slot: std::sync::atomic::AtomicUsize,
     /// The first error wgpu reported outside a call's result (a refused
-    /// shader, a validation error, a lost device), instead of its default
-    /// of panicking.
+    /// shader, a validation error), instead of its default of panicking.
     errors: Arc<Mutex<Option<String>>>,
+    /// Why the device was lost, if it was: the cause of every error after.
+    lost: Arc<Mutex<Option<String>>>,
     dispatches: AtomicU64,
     lose_after: Option<u64>,
 }
@@ -136,7 +148,8 @@ impl GpuTracer {
         };
         let sink = errors.clone();
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| first(&sink, e.to_string())));
-        let sink = errors.clone();
+        let lost = Arc::new(Mutex::new(None));
+        let sink = lost.clone();
         device.set_device_lost_callback(move |reason, message| {
             let why = if message.is_empty() {
                 String::new()
@@ -217,8 +230,10 @@ impl GpuTracer {
             tris,
             primitives: flat.primitives,
             adapter: name,
-            slots: Mutex::new(None),
+            slots: (0..IN_FLIGHT).map(|_| Mutex::new(None)).collect(),
+            next_slot: Default::default(),
             errors,
+            lost,
             dispatches: AtomicU64::new(0),
             lose_after,
         };
@@ -227,9 +242,15 @@ impl GpuTracer {
     }
 
     /// The first error wgpu reported, if any, as this tracer's failure.
+    /// A lost device is named before the errors it caused (wgpu reports
+    /// the loss when polled, often after the first call it failed).
     fn check(&self) -> Result<()> {
-        let slot = self.errors.lock().unwrap_or_else(|e| e.into_inner());
-        match &*slot {
+        let read =
+            |slot: &Mutex<Option<String>>| slot.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        if read(&self.errors).is_some() {
+            let _ = self.device.poll(wgpu::PollType::Poll);
+        }
+        match read(&self.lost).or_else(|| read(&self.errors)) {
             Some(e) => Err(Error::Gpu(format!("{}: {e}", self.adapter.name))),
             None => Ok(()),
         }
@@ -289,7 +310,7 @@ impl GpuTracer {
         while start < rays.len() {
             let end = (start + RAYS_PER_DISPATCH).min(rays.len());
             packed.clear();
-            packed.extend((start..end).map(|i| pack(rays, i, kind)));
+            packed.par_extend((start..end).into_par_iter().map(|i| pack(rays, i, kind)));
             self.dispatch(&packed, kind, &mut read)?;
             start = end;
         }
@@ -299,7 +320,7 @@ impl GpuTracer {
     /// One dispatch: uploads the rays, runs the shader, reads the answers
     /// back into `read`.
     fn dispatch(&self, rays: &[[f32; 8]], kind: Kind, read: &mut impl FnMut(&[u32])) -> Result<()> {
-        let mut slots = self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        let mut slots = self.free_slots();
         if self.lose_after == Some(self.dispatches.fetch_add(1, Ordering::Relaxed)) {
             self.device.destroy();
         }
@@ -324,7 +345,7 @@ impl GpuTracer {
             pass.dispatch_workgroups(n.div_ceil(WORKGROUP) as u32, 1, 1);
         }
         encoder.copy_buffer_to_buffer(&s.answers, 0, &s.readback, 0, bytes);
-        let submitted = queue.submit([encoder.finish()]);
+        queue.submit([encoder.finish()]);
         let slice = s.readback.slice(..bytes);
         let (send, receive) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -336,19 +357,46 @@ impl GpuTracer {
             Err(reported) => reported,
             Ok(()) => Error::Gpu(one_line(&format!("{}: {e}", self.adapter.name))),
         };
-        self.device
-            .poll(wgpu::PollType::Wait {
-                submission_index: Some(submitted),
-                timeout: Some(DISPATCH_TIMEOUT),
-            })
-            .map_err(|e| failed(&e))?;
-        receive
-            .recv()
-            .map_err(|e| failed(&e))?
-            .map_err(|e| failed(&format!("reading the answers back: {e}")))?;
+        // Polled, not waited on: a blocking wait holds wgpu's fence lock,
+        // which every other worker's submission then waits for, and the
+        // dispatches in flight would run one at a time.
+        let start = std::time::Instant::now();
+        let mapped = loop {
+            self.device
+                .poll(wgpu::PollType::Poll)
+                .map_err(|e| failed(&e))?;
+            match receive.try_recv() {
+                Ok(mapped) => break mapped,
+                Err(std::sync::mpsc::TryRecvError::Empty) => {}
+                Err(e) => return Err(failed(&e)),
+            }
+            if start.elapsed() > DISPATCH_TIMEOUT {
+                return Err(failed(&format!(
+                    "no answer within {} s",
+                    DISPATCH_TIMEOUT.as_secs()
+                )));
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        };
+        mapped.map_err(|e| failed(&format!("reading the answers back: {e}")))?;
         read(bytemuck::cast_slice(&slice.get_mapped_range()));
         s.readback.unmap();
         self.check()
+    }
+
+    /// A set of dispatch buffers no other dispatch holds: the first free
+    /// one from a rotating start, else (all in flight) the next in turn
+    /// once it is free.
+    fn free_slots(&self) -> std::sync::MutexGuard<'_, Option<Slots>> {
+        let first = self.next_slot.fetch_add(1, Ordering::Relaxed);
+        for k in 0..IN_FLIGHT {
+            if let Ok(slots) = self.slots[(first + k) % IN_FLIGHT].try_lock() {
+                return slots;
+            }
+        }
+        self.slots[first % IN_FLIGHT]
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
     }
 
     /// Buffers for dispatches of up to `capacity` rays.
