@@ -123,8 +123,11 @@ fn main() {
         .filter(|(a, b)| a != b)
         .count();
     let occluded = cpu_occluded.iter().filter(|&&o| o).count();
+    let only_gpu = (cpu_occluded.iter().zip(&gpu_occluded))
+        .filter(|(a, b)| !**a && **b)
+        .count();
     println!(
-        "occlusion: CPU {:.2} Mrays/s, GPU {:.2} Mrays/s ({:.2}x); {occluded} occluded; {differ} of {n} differ ({:.4}%)",
+        "occlusion: CPU {:.2} Mrays/s, GPU {:.2} Mrays/s ({:.2}x); {occluded} occluded; {differ} of {n} differ ({:.4}%), {only_gpu} occluded on the GPU only",
         rate(cpu_s),
         rate(gpu_s),
         cpu_s / gpu_s,

@@ -12,16 +12,46 @@ use aobake::trace::gpu::{Adapters, GpuTracer};
 use aobake::trace::{Closest, Hit, RayBatch, Tracer};
 use glam::{Vec3, Vec3A};
 
-/// A tracer on any adapter, or `None` (with the note) where there is none.
+/// A tracer on any adapter, or `None` (with the note) where there is none;
+/// any other failure (a shader or a limit the driver refuses) fails.
 fn gpu(occluders: &[[Vec3A; 3]]) -> Option<GpuTracer> {
     match GpuTracer::new(occluders, Adapters::Any) {
         Ok(t) => Some(t.expect("triangles given")),
+        Err(e) if !e.to_string().contains("no Vulkan adapter found") => {
+            panic!("the GPU backend failed to start: {e}")
+        }
         Err(e) => {
             let missing = format!("a Vulkan adapter (mesa-vulkan-drivers for lavapipe): {e}");
             assert!(!common::tools_present("the GPU tests", &[missing.as_str()]));
             None
         }
     }
+}
+
+/// A CPU tracer with `gpu` attached: the bake's way to the GPU, whose
+/// candidates it settles with the CPU's triangle test.
+fn attached(occluders: &[[Vec3A; 3]], gpu: GpuTracer) -> Tracer {
+    let mut tracer = Tracer::new(occluders);
+    tracer.attach_gpu(gpu);
+    tracer
+}
+
+/// Whether every ray `cpu` finds occluded has a candidate: the margin
+/// covers the GPU's rounding. The count of candidates the CPU's test
+/// rejects (rays then traced on the CPU).
+fn candidates_cover(gpu: &GpuTracer, cpu: &Tracer, rays: &RayBatch) -> usize {
+    let (mut candidates, mut on_cpu) = (Vec::new(), Vec::new());
+    gpu.occlusion_candidates(rays, &mut candidates).unwrap();
+    cpu.occluded_batch(rays, &mut on_cpu);
+    for i in 0..rays.len() {
+        assert!(
+            rays.is_blocked(i) || !on_cpu[i] || candidates[i].is_some(),
+            "ray {i} is occluded on the CPU and has no candidate"
+        );
+    }
+    (0..rays.len())
+        .filter(|&i| !rays.is_blocked(i) && !on_cpu[i] && candidates[i].is_some())
+        .count()
 }
 
 /// A unit quad in the plane z = h, centred on the z axis.
@@ -59,20 +89,25 @@ fn occlusion_is_what_the_geometry_says() {
     expected.push(false);
     rays.push(Vec3::ZERO, Vec3::Z, -1.0);
     expected.push(false);
+    let adapter = gpu.adapter().clone();
+    let tracer = attached(&quad(0.2), gpu);
     let mut out = Vec::new();
-    gpu.occluded_batch(&rays, &mut out).unwrap();
-    assert_eq!(out, expected, "on {:?}", gpu.adapter());
+    tracer.occluded_batch(&rays, &mut out);
+    assert_eq!(tracer.gpu_failure(), None);
+    assert_eq!(out, expected, "on {adapter:?}");
 }
 
 /// Rays along triangle edges and through vertices, where the triangle
 /// test decides by rounding: from inside a closed octahedron, aimed at its
-/// vertices, its edges' midpoints and swept along an edge, the GPU answers
-/// as the CPU but for the last bit of a product on a few exact edge rays;
-/// just off the edge, exactly as the CPU. (Both use obvhs's test, which is not watertight: a
-/// ray exactly along a shared edge can miss both triangles, as most of
-/// these do. The GPU keeps it for the answers to agree; Woop's watertight
-/// test there disagreed with the CPU on 7% of the Cornell box's bake rays,
-/// the ones from texels on the edge between two walls.)
+/// vertices, its edges' midpoints and swept along an edge, every answer is
+/// the CPU's. (Both use obvhs's test, which is not watertight: a ray
+/// exactly along a shared edge can miss both triangles, as most of these
+/// do. A GPU rounds its products otherwise where it fuses a multiply and
+/// an add, which decided 2 of these rays before its hits became candidates
+/// that the host retests with the CPU's test; Woop's watertight test there
+/// disagreed with the CPU on 7% of the Cornell box's bake rays, the ones
+/// from texels on the edge between two walls.) Every ray the CPU finds
+/// occluded has a candidate.
 #[test]
 fn edge_and_vertex_rays_are_answered_as_on_the_cpu() {
     let v = [
@@ -114,12 +149,17 @@ fn edge_and_vertex_rays_are_answered_as_on_the_cpu() {
     for d in &aims {
         rays.push(Vec3::ZERO, *d, 1.0);
     }
+    let rejected = candidates_cover(&gpu, &cpu, &rays);
+    let tracer = attached(&faces, gpu);
     let (mut on_gpu, mut on_cpu) = (Vec::new(), Vec::new());
-    gpu.occluded_batch(&rays, &mut on_gpu).unwrap();
+    tracer.occluded_batch(&rays, &mut on_gpu);
     cpu.occluded_batch(&rays, &mut on_cpu);
+    assert_eq!(tracer.gpu_failure(), None);
+    eprintln!("{rejected} candidates the CPU's test rejects");
     // Off the edges every answer agrees (and hits); exactly on an edge or
-    // a vertex the last bit of a product decides, and at most 1% differ.
-    // (The sweep's ends, along x = 0 or y = 0, lie on edges too.)
+    // a vertex the CPU's rounding decides, which the candidates' retest
+    // on the host reproduces. (The sweep's ends, along x = 0 or y = 0, lie
+    // on edges too.)
     let off_edge: Vec<usize> = (1..1000).map(|k| 14 + 2 * k + 1).collect();
     assert!(off_edge.iter().all(|&i| on_gpu[i] && on_cpu[i]));
     let differ: Vec<(Vec3, bool)> = (0..aims.len())
@@ -131,10 +171,7 @@ fn edge_and_vertex_rays_are_answered_as_on_the_cpu() {
         differ.len(),
         aims.len() - off_edge.len()
     );
-    assert!(
-        differ.len() * 100 <= aims.len() - off_edge.len(),
-        "{differ:?}"
-    );
+    assert!(differ.is_empty(), "{differ:?}");
 }
 
 /// Random rays in the flight helmet: from points inside its bounds in
@@ -176,16 +213,20 @@ fn a_scene_occludes_as_on_the_cpu() {
     };
     let cpu = Tracer::new(&occluders);
     let n = rays.len();
+    let rejected = candidates_cover(&gpu, &cpu, &rays);
+    let adapter = gpu.adapter().clone();
+    let tracer = attached(&occluders, gpu);
     let (mut on_gpu, mut on_cpu) = (Vec::new(), Vec::new());
-    gpu.occluded_batch(&rays, &mut on_gpu).unwrap();
+    tracer.occluded_batch(&rays, &mut on_gpu);
     cpu.occluded_batch(&rays, &mut on_cpu);
+    assert_eq!(tracer.gpu_failure(), None);
     let occluded = on_cpu.iter().filter(|&&h| h).count();
     let differ = on_gpu.iter().zip(&on_cpu).filter(|(a, b)| a != b).count();
     eprintln!(
-        "{} rays, {occluded} occluded on the CPU, {differ} answered otherwise on {:?}",
-        n,
-        gpu.adapter()
+        "{n} rays, {occluded} occluded on the CPU, {differ} answered otherwise, {rejected} candidates rejected, on {adapter:?}"
     );
+    // Candidates the CPU rejects (then traced on the CPU) stay rare.
+    assert!(rejected * 1000 <= n, "{rejected}");
     // Both answers occur often: the comparison means something.
     assert!(occluded > n / 10 && occluded < n * 9 / 10, "{occluded}");
     assert!(differ * 10_000 <= n, "{differ} of {n} differ");

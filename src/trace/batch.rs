@@ -143,12 +143,12 @@ impl Query for Occlusion {
     }
     #[cfg(feature = "gpu")]
     fn on_gpu(
-        _: &Tracer,
+        tracer: &Tracer,
         gpu: &super::gpu::Attached,
         rays: &RayBatch,
         out: &mut Vec<bool>,
     ) -> bool {
-        gpu.occluded_batch(rays, out)
+        gpu.occluded_batch(tracer, rays, out)
     }
 }
 

@@ -60,6 +60,16 @@ pub struct FlatBvh {
     pub depth: u32,
 }
 
+/// How much each box grows, relative to its longest side: twice the
+/// shader's barycentric margin (`BARY_MARGIN` in traverse.wgsl). A ray the
+/// CPU's test counts as a hit can pass outside the triangle by its
+/// rounding, so outside the triangle's exact box (a wall's box is flat);
+/// the shader tests triangles with a margin, and its boxes must hold it.
+const BOX_MARGIN: f32 = 2e-4;
+
+/// And at least this much (bake units; the scene's diagonal is 1).
+const BOX_FLOOR: f32 = 1e-7;
+
 /// Builds obvhs's BVH2 over `occluders` (the same presets as the CPU's
 /// CWBVH) and flattens it; `None` without triangles.
 pub fn flatten(occluders: &[[Vec3A; 3]]) -> Option<FlatBvh> {
@@ -71,11 +81,18 @@ pub fn flatten(occluders: &[[Vec3A; 3]]) -> Option<FlatBvh> {
     let nodes: Vec<GpuNode> = bvh
         .nodes
         .iter()
-        .map(|n| GpuNode {
-            lo: n.aabb.min.into(),
-            first: n.first_index,
-            hi: n.aabb.max.into(),
-            count: n.prim_count,
+        .map(|n| {
+            // Grown by the shader's margin around its triangles (see
+            // BOX_MARGIN), relative to the box, so a parent's growth holds
+            // its children's.
+            let (lo, hi) = (n.aabb.min, n.aabb.max);
+            let grow = Vec3A::splat(BOX_MARGIN * (hi - lo).max_element() + BOX_FLOOR);
+            GpuNode {
+                lo: (lo - grow).into(),
+                first: n.first_index,
+                hi: (hi + grow).into(),
+                count: n.prim_count,
+            }
         })
         .collect();
     let tris = bvh

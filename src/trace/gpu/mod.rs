@@ -127,19 +127,43 @@ impl Attached {
         }
     }
 
-    /// Answers `rays`' occlusion into `out` on the GPU: false (nothing
-    /// answered) once a batch has failed.
-    pub(crate) fn occluded_batch(&self, rays: &RayBatch, out: &mut Vec<bool>) -> bool {
-        self.answered(|| self.tracer.occluded_batch(rays, out))
+    /// Answers `rays`' occlusion into `out` as `cpu` (the tracer this is
+    /// attached to) answers it: false (nothing answered) once a batch has
+    /// failed. A ray without a candidate is not occluded; one with a
+    /// candidate the CPU's test hits is; the rest (a candidate only within
+    /// the margin) are traced on the CPU.
+    pub(crate) fn occluded_batch(
+        &self,
+        cpu: &super::Tracer,
+        rays: &RayBatch,
+        out: &mut Vec<bool>,
+    ) -> bool {
+        self.answered(|| {
+            let mut found = Vec::new();
+            self.tracer.occlusion_candidates(rays, &mut found)?;
+            out.clear();
+            out.extend(found.iter().enumerate().map(|(i, &candidate)| {
+                if rays.is_blocked(i) {
+                    return true;
+                }
+                let Some(k) = candidate else { return false };
+                let (o, d, t_max) = (rays.origins()[i], rays.directions()[i], rays.t_max()[i]);
+                cpu.retest(self.to_cpu[k as usize], o, d, t_max, t_max)
+                    .is_some()
+                    || cpu.occluded(o, d, t_max)
+            }));
+            Ok(())
+        })
     }
 
-    /// Answers `rays`' closest hits into `out` on the GPU, as `cpu` (the
-    /// tracer this is attached to) answers them: false (nothing answered)
-    /// once a batch has failed. The GPU finds the hit; its distance is the
-    /// CPU's triangle test on that triangle (a GPU may round the test's
-    /// products otherwise, fusing a multiply and an add), and a ray whose
-    /// hit ties with another triangle's, or misses that triangle on the
-    /// CPU, is traced on the CPU, whose traversal breaks the tie.
+    /// Answers `rays`' closest hits into `out` as `cpu` (the tracer this
+    /// is attached to) answers them: false (nothing answered) once a batch
+    /// has failed. A ray without a candidate hits nothing; the nearest
+    /// candidate, where the CPU's test hits it and no other occluder's is
+    /// within rounding of it, is the hit, its distance the CPU's test's;
+    /// the rest (a near tie, which rounding or the CPU's traversal order
+    /// decides, or a candidate only within the margin) are traced on the
+    /// CPU.
     pub(crate) fn closest_batch(
         &self,
         cpu: &super::Tracer,
@@ -148,19 +172,15 @@ impl Attached {
     ) -> bool {
         self.answered(|| {
             let mut found = Vec::new();
-            self.tracer.closest_batch(rays, &mut found)?;
-            let original = self.tracer.primitives();
+            self.tracer.closest_candidates(rays, &mut found)?;
             out.clear();
             out.extend(found.iter().enumerate().map(|(i, hit)| {
+                let hit = (*hit)?;
                 let (o, d) = (rays.origins()[i], rays.directions()[i]);
                 let (t_max, depth) = (rays.t_max()[i], rays.depths()[i]);
-                let hit = (*hit)?;
-                let tied = hit
-                    .tie
-                    .is_some_and(|k| original[k as usize] != original[hit.triangle as usize]);
                 let triangle = self.to_cpu[hit.triangle as usize];
                 match cpu.retest(triangle, o, d, t_max, depth) {
-                    Some(found) if !tied => Some(found),
+                    Some(found) if hit.tie.is_none() => Some(found),
                     _ => cpu.trace_closest(o, d, t_max, depth),
                 }
             }));

@@ -2,9 +2,12 @@
 //! memory and answers batches of rays with the shaders of `traverse.wgsl`.
 //!
 //! In: bake-space occluder triangles, an adapter choice, then
-//! [`RayBatch`]es. Out: per ray, whether it is occluded, or its closest hit
-//! as the shifted ray's parameter and the triangle in the tree's leaf
-//! order ([`GpuTracer::primitives`] maps it back to the occluders).
+//! [`RayBatch`]es. Out: per ray, candidates (traverse.wgsl's margin test):
+//! a triangle that may occlude it, or the nearest candidate hit as the
+//! shifted ray's parameter, its triangle in the tree's leaf order
+//! ([`GpuTracer::primitives`] maps it back to the occluders) and a near
+//! tie. Every triangle the CPU's test hits is a candidate; the caller
+//! settles them with that test ([`super::Attached`]).
 //!
 //! A batch goes in dispatches of at most [`RAYS_PER_DISPATCH`] rays, at
 //! most [`IN_FLIGHT`] at a time, each through a set of buffers kept from
@@ -48,15 +51,16 @@ const POLL_INTERVAL: std::time::Duration = std::time::Duration::from_micros(50);
 /// No triangle (`NONE` in traverse.wgsl).
 const NONE: u32 = u32::MAX;
 
-/// A closest hit as the GPU found it.
+/// The nearest candidate hit the GPU found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GpuHit {
-    /// The shifted ray's parameter (see [`crate::trace::Hit`]).
+    /// The shifted ray's parameter (see [`crate::trace::Hit`]), capped.
     pub shifted: f32,
     /// The triangle, in the tree's leaf order ([`GpuTracer::primitives`]).
     pub triangle: u32,
-    /// Another triangle hit at exactly that parameter, below the cut: which
-    /// one is "the" hit is then the traversal order's choice.
+    /// Another occluder's candidate within rounding of that parameter,
+    /// below the cut: which one is "the" hit is then rounding's or the
+    /// traversal order's choice.
     pub tie: Option<u32>,
 }
 
@@ -73,6 +77,8 @@ pub struct GpuTracer {
     layout: wgpu::BindGroupLayout,
     nodes: wgpu::Buffer,
     tris: wgpu::Buffer,
+    /// Per triangle in leaf order, its occluder (`occluder` in the shader).
+    occluder: wgpu::Buffer,
     /// Per triangle in leaf order, its index among the occluders.
     primitives: Vec<u32>,
     adapter: AdapterName,
@@ -136,6 +142,9 @@ impl GpuTracer {
             required_limits: wgpu::Limits {
                 max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
                 max_buffer_size: adapter.limits().max_buffer_size,
+                // Five storage buffers (Vulkan promises four; drivers give
+                // eight and more).
+                max_storage_buffers_per_shader_stage: 5,
                 ..wgpu::Limits::downlevel_defaults()
             },
             ..Default::default()
@@ -176,6 +185,7 @@ impl GpuTracer {
         };
         let nodes = upload("nodes", bytemuck::cast_slice(&flat.nodes));
         let tris = upload("triangles", bytemuck::cast_slice(&flat.tris));
+        let occluder = upload("occluders", bytemuck::cast_slice(&flat.primitives));
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("traverse.wgsl"),
             source: wgpu::ShaderSource::Wgsl(include_str!("traverse.wgsl").into()),
@@ -199,6 +209,7 @@ impl GpuTracer {
                 buffer(2, storage(true)),
                 buffer(3, storage(false)),
                 buffer(4, wgpu::BufferBindingType::Uniform),
+                buffer(5, storage(true)),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -228,6 +239,7 @@ impl GpuTracer {
             layout,
             nodes,
             tris,
+            occluder,
             primitives: flat.primitives,
             adapter: name,
             slots: (0..IN_FLIGHT).map(|_| Mutex::new(None)).collect(),
@@ -248,7 +260,11 @@ impl GpuTracer {
         let read =
             |slot: &Mutex<Option<String>>| slot.lock().unwrap_or_else(|e| e.into_inner()).clone();
         if read(&self.errors).is_some() {
-            let _ = self.device.poll(wgpu::PollType::Poll);
+            // wgpu reports a lost device once its queue has drained.
+            let _ = self.device.poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: Some(std::time::Duration::from_secs(2)),
+            });
         }
         match read(&self.lost).or_else(|| read(&self.errors)) {
             Some(e) => Err(Error::Gpu(format!("{}: {e}", self.adapter.name))),
@@ -269,26 +285,27 @@ impl GpuTracer {
         &self.adapter
     }
 
-    /// Per triangle in the tree's leaf order (as [`GpuTracer::closest_batch`]
-    /// names them), its index among the occluders given.
+    /// Per triangle in the tree's leaf order (as the candidates name
+    /// them), its index among the occluders given.
     pub fn primitives(&self) -> &[u32] {
         &self.primitives
     }
 
-    /// Per ray of `rays`, whether anything is hit in (0, t_max] (a blocked
-    /// ray: true), into `out` (cleared first), in the batch's order.
-    pub fn occluded_batch(&self, rays: &RayBatch, out: &mut Vec<bool>) -> Result<()> {
+    /// Per ray of `rays`, a triangle (leaf order) that may occlude it in
+    /// (0, t_max], `None` where none does (a blocked ray: `None`, the
+    /// caller answers it), into `out` (cleared first), in the batch's order.
+    pub fn occlusion_candidates(&self, rays: &RayBatch, out: &mut Vec<Option<u32>>) -> Result<()> {
         out.clear();
         out.reserve(rays.len());
         self.batch(rays, Kind::Occluded, |answers| {
-            out.extend(answers.iter().map(|&a| a != 0))
+            out.extend(answers.iter().map(|&a| (a != NONE).then_some(a)))
         })
     }
 
-    /// Per ray of `rays`, its closest hit in (0, t_max] cut at its depth
-    /// ([`crate::trace::Tracer::trace_closest`]), `None` for no hit (a
-    /// blocked ray: none), into `out` (cleared first).
-    pub fn closest_batch(&self, rays: &RayBatch, out: &mut Vec<Option<GpuHit>>) -> Result<()> {
+    /// Per ray of `rays`, the nearest candidate hit in (0, t_max] cut at
+    /// its depth ([`crate::trace::Tracer::trace_closest`]), `None` where no
+    /// triangle is hit (a blocked ray: `None`), into `out` (cleared first).
+    pub fn closest_candidates(&self, rays: &RayBatch, out: &mut Vec<Option<GpuHit>>) -> Result<()> {
         out.clear();
         out.reserve(rays.len());
         self.batch(rays, Kind::Closest, |answers| {
@@ -431,6 +448,7 @@ impl GpuTracer {
                 entry(2, &rays),
                 entry(3, &answers),
                 entry(4, &params),
+                entry(5, &self.occluder),
             ],
         });
         Slots {

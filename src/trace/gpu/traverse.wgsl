@@ -1,33 +1,34 @@
 // Rays on the GPU: one invocation per ray, a stack traversal of a BVH2
 // (obvhs's, flattened by flatten.rs), the nearer child first. Two entry
-// points: `occluded` (any hit ends the ray) and `closest` (the closest hit,
-// cut at the ray's cap).
+// points: `occluded` (any candidate ends the ray) and `closest` (the
+// nearest candidate, cut at the ray's cap).
 //
 // In: nodes (box, then first child or first triangle, and the leaf's
 // triangle count: 0 for an inner node, whose children are adjacent),
-// triangles in leaf order (obvhs's RtTriangle), rays as the CPU traces
-// them (origin already shifted back by SHIFT, the end t_max + SHIFT, unit
-// direction, and for `closest` the cap: where a hit beyond is taken as a
-// hit at it, Hit::cap in bvh.rs). A ray whose end is negative is blocked.
-// Out, per ray i: `occluded` writes answers[i] = 1 if a triangle (either
-// face) is hit at t in [SHIFT, end], else 0 (blocked: 1); `closest` writes
-// answers[3i] = the hit's t (bits), answers[3i + 1] = its triangle in leaf
-// order, NONE for no hit (blocked: none), and answers[3i + 2] another
-// triangle hit at exactly that t below the cap, else NONE: a tie, which
-// the CPU breaks by its own traversal order, so the host asks the CPU.
+// triangles in leaf order (obvhs's RtTriangle) with each one's index among
+// the occluders, rays as the CPU traces them (origin already shifted back
+// by SHIFT, the end t_max + SHIFT, unit direction, and for `closest` the
+// cap: a hit beyond it is taken as a hit at it, Hit::cap in bvh.rs). A ray
+// whose end is negative is blocked (the host answers it).
 //
-// The triangle test is the CPU backend's (obvhs's RtTriangle::intersect,
-// both faces, on the triangle's precomputed edges and normal), on the ray
-// the CPU traces: started SHIFT behind its origin with t in [SHIFT,
-// t_max + SHIFT] (see BOX_EPSILON_SHIFT in bvh.rs; the host shifts it, so
-// its rounding is the CPU's). A receiver's origin can lie on another
-// surface's plane within rounding (a texel on the edge between a wall and
-// the floor): there the answer is decided by rounding, and the same
-// operations on the same values decide it as the CPU does. The closest
-// hit keeps obvhs's rule: a hit replaces the best only when strictly
-// nearer, the triangle test bounded by the best so far. The box test
-// widens each box's exit by 2 gamma_3 (Ize 2013, "Robust BVH Ray
-// Traversal") so rounding never culls a box the ray enters.
+// Out: candidates, which the host settles with the CPU's own triangle
+// test (gpu/mod.rs). The test here is the CPU's (obvhs's
+// RtTriangle::intersect, both faces, on the same precomputed edges and
+// normal, the same operations in the same order) with a margin: a
+// triangle counts when its barycentrics are above -BARY_MARGIN and its t
+// within T_MARGIN (relative) of the ray's range. A GPU may fuse a multiply
+// and an add where the CPU rounds twice, and on a ray through an edge
+// that decides the answer; with the margin every triangle the CPU hits is
+// a candidate here too, and the host retests the one found.
+// `occluded` writes answers[i] = a candidate, else NONE. `closest` writes
+// answers[3i] = the nearest candidate's t (bits, capped), answers[3i + 1]
+// = that triangle, NONE for none, answers[3i + 2] = another occluder's
+// triangle hit within WINDOW (relative) of it below the cap, else NONE: a
+// near tie, which rounding or the CPU's traversal order decides, so the
+// host asks the CPU.
+//
+// The box test widens each box's exit by 2 gamma_3 (Ize 2013, "Robust BVH
+// Ray Traversal") so rounding never culls a box the ray enters.
 
 struct Node {
     lo: vec3<f32>,
@@ -60,6 +61,7 @@ struct Params {
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
 @group(0) @binding(3) var<storage, read_write> answers: array<u32>;
 @group(0) @binding(4) var<uniform> params: Params;
+@group(0) @binding(5) var<storage, read> occluder: array<u32>;
 
 const STACK: u32 = 64u;
 // 1 + 2 gamma_3, gamma_n = n eps / (1 - n eps), eps = 2^-24.
@@ -68,30 +70,39 @@ const EXIT_WIDEN: f32 = 1.0000004;
 const SHIFT: f32 = 2e-4;
 const NONE: u32 = 0xffffffffu;
 const MISS: f32 = -1.0;
+// The triangle test's margins (see above): far beyond a fused
+// multiply-add's rounding except at grazing angles, and thin enough that
+// a candidate the CPU misses is rare.
+const BARY_MARGIN: f32 = 1e-4;
+const T_MARGIN: f32 = 1e-5;
+// Two candidates nearer each other than this (relative) are a near tie.
+const WINDOW: f32 = 1e-5;
 
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     // In the CPU's order: (x + y) + z.
     return (a.x * b.x + a.y * b.y) + a.z * b.z;
 }
 
-// The t in [t_min, t_max] where the triangle is hit (either face), else
-// MISS: obvhs's RtTriangle::intersect.
-fn hit_triangle(tri: Tri, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
+// The t where the triangle is a candidate (either face) in [t_min, t_max]
+// widened by the margins, else MISS.
+fn candidate(tri: Tri, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
     let c = tri.v0.xyz - o;
     // d x c as glam computes it.
     let r = vec3<f32>(d.y * c.z - c.y * d.z, d.z * c.x - c.z * d.x, d.x * c.y - c.x * d.y);
-    let inv_det = 1.0 / dot3(tri.ng.xyz, d);
+    let det = dot3(tri.ng.xyz, d);
+    if det == 0.0 {
+        return MISS;
+    }
+    let inv_det = 1.0 / det;
     let u = dot3(r, tri.e2.xyz) * inv_det;
     let v = dot3(r, tri.e1.xyz) * inv_det;
     let w = 1.0 - u - v;
-    // u, v, w >= 0 with their sign bits (a -0.0 fails, as on the CPU).
-    let signs = bitcast<u32>(u) | bitcast<u32>(v) | bitcast<u32>(w);
-    if inv_det == 0.0 || (signs & 0x80000000u) != 0u {
+    if !(min(u, min(v, w)) >= -BARY_MARGIN) {
         return MISS;
     }
     let t = dot3(tri.ng.xyz, c) * inv_det;
-    if t >= t_min && t <= t_max {
-        return t;
+    if t >= t_min * (1.0 - T_MARGIN) && t <= t_max * (1.0 + T_MARGIN) {
+        return max(t, 0.0);
     }
     return MISS;
 }
@@ -110,12 +121,17 @@ fn enter_box(n: Node, o: vec3<f32>, inv: vec3<f32>, t_end: f32) -> f32 {
 struct Found {
     t: f32,
     tri: u32,
-    // Another triangle hit at exactly t (below the cap), else NONE.
+    // Another occluder's candidate within WINDOW of t (below the cap).
     tie: u32,
 };
 
-// The traversal both entry points share: with `any`, the first hit found
-// (t unused); else the closest, each hit's t capped at `cap`.
+// Whether two candidates' t are a near tie.
+fn near(a: f32, b: f32) -> bool {
+    return abs(a - b) <= WINDOW * max(a, b);
+}
+
+// The traversal both entry points share: with `any`, the first candidate
+// found (t unused); else the nearest, each candidate's t capped at `cap`.
 fn traverse(ray: Ray, any: bool) -> Found {
     var found = Found(ray.origin.w, NONE, NONE);
     let d = ray.dir.xyz;
@@ -125,11 +141,14 @@ fn traverse(ray: Ray, any: bool) -> Found {
     let tiny = vec3<f32>(1e-20);
     let safe = select(d, select(tiny, -tiny, d < vec3<f32>(0.0)), abs(d) < tiny);
     let inv = 1.0 / safe;
-    if enter_box(nodes[0], o, inv, found.t) == MISS {
+    // How far candidates are looked for: past the nearest so far by the
+    // tie window (past the ray's end by the margin).
+    var reach = found.t * (1.0 + WINDOW);
+    if enter_box(nodes[0], o, inv, reach) == MISS {
         return found;
     }
     // Nodes to visit with where the ray enters them: a node entered
-    // beyond the closest hit found since is skipped.
+    // beyond the reach since is skipped.
     var stack_node: array<u32, STACK>;
     var stack_enter: array<f32, STACK>;
     var top = 0u;
@@ -138,25 +157,29 @@ fn traverse(ray: Ray, any: bool) -> Found {
         let n = nodes[node];
         if n.count > 0u {
             for (var k = n.first; k < n.first + n.count; k++) {
-                var t = hit_triangle(tris[k], o, d, SHIFT, found.t);
-                if t == MISS {
+                let hit = candidate(tris[k], o, d, SHIFT, reach);
+                if hit == MISS {
                     continue;
                 }
                 if any {
                     found.tri = k;
                     return found;
                 }
-                t = min(t, cap);
-                if t < found.t {
-                    found = Found(t, k, NONE);
-                } else if t == found.t && t < cap && k != found.tri {
+                let t = min(hit, cap);
+                let other = found.tri != NONE && occluder[k] != occluder[found.tri];
+                if found.tri == NONE || t < found.t {
+                    // The one it replaces, if near, is a tie of the new.
+                    let tied = other && found.t < cap && near(t, found.t);
+                    found = Found(t, k, select(NONE, found.tri, tied));
+                    reach = min(found.t * (1.0 + WINDOW), reach);
+                } else if other && t < cap && near(t, found.t) {
                     found.tie = k;
                 }
             }
         } else {
             let a = n.first;
-            let ta = enter_box(nodes[a], o, inv, found.t);
-            let tb = enter_box(nodes[a + 1u], o, inv, found.t);
+            let ta = enter_box(nodes[a], o, inv, reach);
+            let tb = enter_box(nodes[a + 1u], o, inv, reach);
             if ta != MISS && tb != MISS {
                 let b_first = tb < ta;
                 if top < STACK {
@@ -178,7 +201,7 @@ fn traverse(ray: Ray, any: bool) -> Found {
         var next = NONE;
         while top > 0u {
             top--;
-            if stack_enter[top] <= found.t * EXIT_WIDEN {
+            if stack_enter[top] <= reach * EXIT_WIDEN {
                 next = stack_node[top];
                 break;
             }
@@ -191,32 +214,29 @@ fn traverse(ray: Ray, any: bool) -> Found {
     return found;
 }
 
-@compute @workgroup_size(64)
-fn occluded(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x;
-    if i >= params.count {
-        return;
-    }
+// Ray i traced (a blocked ray: no candidate, the host answers it).
+fn trace(i: u32, any: bool) -> Found {
     let ray = rays[i];
     if ray.origin.w < 0.0 {
-        answers[i] = 1u;
-        return;
+        return Found(0.0, NONE, NONE);
     }
-    answers[i] = select(0u, 1u, traverse(ray, true).tri != NONE);
+    return traverse(ray, any);
+}
+
+@compute @workgroup_size(64)
+fn occluded(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x < params.count {
+        answers[id.x] = trace(id.x, true).tri;
+    }
 }
 
 @compute @workgroup_size(64)
 fn closest(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
-    if i >= params.count {
-        return;
+    if i < params.count {
+        let found = trace(i, false);
+        answers[3u * i] = bitcast<u32>(found.t);
+        answers[3u * i + 1u] = found.tri;
+        answers[3u * i + 2u] = found.tie;
     }
-    let ray = rays[i];
-    var found = Found(0.0, NONE, NONE);
-    if ray.origin.w >= 0.0 {
-        found = traverse(ray, false);
-    }
-    answers[3u * i] = bitcast<u32>(found.t);
-    answers[3u * i + 1u] = found.tri;
-    answers[3u * i + 2u] = found.tie;
 }
