@@ -33,7 +33,7 @@ use super::{Hit, RayBatch};
 use crate::error::{Error, Result};
 
 /// Rays per dispatch: bounds the GPU memory a dispatch takes (32 bytes
-/// of ray, 12 of answer and 12 of its copy to read back each: 56 MiB)
+/// of ray, 8 of answer and 8 of its copy to read back each: 48 MiB)
 /// whatever the batch's size.
 pub const RAYS_PER_DISPATCH: usize = 1 << 20;
 

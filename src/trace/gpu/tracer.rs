@@ -3,10 +3,9 @@
 //!
 //! In: bake-space occluder triangles, an adapter choice, then
 //! [`RayBatch`]es. Out: per ray, candidates (traverse.wgsl's margin test):
-//! a triangle that may occlude it, or the nearest candidate hit as the
-//! shifted ray's parameter, its triangle in the tree's leaf order
-//! ([`GpuTracer::primitives`] maps it back to the occluders) and a near
-//! tie. Every triangle the CPU's test hits is a candidate; the caller
+//! a triangle that may occlude it, or the nearest candidate hit's triangle
+//! in the tree's leaf order ([`GpuTracer::primitives`] maps it back to the
+//! occluders) and a near tie's. Every triangle the CPU's test hits is a candidate; the caller
 //! settles them with that test ([`super::Attached`]).
 //!
 //! A batch goes in dispatches of at most [`RAYS_PER_DISPATCH`] rays, at
@@ -31,9 +30,8 @@ use wgpu::util::DeviceExt;
 
 /// Bytes of one ray as the shader reads it (`Ray` in traverse.wgsl).
 const RAY_BYTES: u64 = 32;
-/// Bytes of the largest answer (a closest hit: its t, its triangle and a
-/// tie's).
-const ANSWER_BYTES: u64 = 12;
+/// Bytes of the largest answer (a closest hit: its triangle and a tie's).
+const ANSWER_BYTES: u64 = 8;
 
 /// How long a dispatch may take before the GPU counts as failed (hung):
 /// far beyond what 2^20 rays take even on a software adapter, so only a
@@ -54,11 +52,9 @@ const NONE: u32 = u32::MAX;
 /// The nearest candidate hit the GPU found.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GpuHit {
-    /// The shifted ray's parameter (see [`crate::trace::Hit`]), capped.
-    pub shifted: f32,
     /// The triangle, in the tree's leaf order ([`GpuTracer::primitives`]).
     pub triangle: u32,
-    /// Another occluder's candidate within rounding of that parameter,
+    /// Another occluder's candidate within rounding of its distance,
     /// below the cut: which one is "the" hit is then rounding's or the
     /// traversal order's choice.
     pub tie: Option<u32>,
@@ -117,7 +113,7 @@ impl Kind {
     fn answer_words(self) -> usize {
         match self {
             Kind::Occluded => 1,
-            Kind::Closest => 3,
+            Kind::Closest => 2,
         }
     }
 }
@@ -309,11 +305,10 @@ impl GpuTracer {
         out.clear();
         out.reserve(rays.len());
         self.batch(rays, Kind::Closest, |answers| {
-            out.extend(answers.chunks_exact(3).map(|a| {
-                (a[1] != NONE).then(|| GpuHit {
-                    shifted: f32::from_bits(a[0]),
-                    triangle: a[1],
-                    tie: (a[2] != NONE).then_some(a[2]),
+            out.extend(answers.chunks_exact(2).map(|a| {
+                (a[0] != NONE).then(|| GpuHit {
+                    triangle: a[0],
+                    tie: (a[1] != NONE).then_some(a[1]),
                 })
             }))
         })

@@ -21,8 +21,8 @@
 // that decides the answer; with the margin every triangle the CPU hits is
 // a candidate here too, and the host retests the one found.
 // `occluded` writes answers[i] = a candidate, else NONE. `closest` writes
-// answers[3i] = the nearest candidate's t (bits, capped), answers[3i + 1]
-// = that triangle, NONE for none, answers[3i + 2] = another occluder's
+// answers[2i] = the nearest candidate triangle (its distance the host's
+// retest gives), NONE for none, answers[2i + 1] = another occluder's
 // triangle hit within WINDOW (relative) of it below the cap, else NONE: a
 // near tie, which rounding or the CPU's traversal order decides, so the
 // host asks the CPU.
@@ -235,8 +235,7 @@ fn closest(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
     if i < params.count {
         let found = trace(i, false);
-        answers[3u * i] = bitcast<u32>(found.t);
-        answers[3u * i + 1u] = found.tri;
-        answers[3u * i + 2u] = found.tie;
+        answers[2u * i] = found.tri;
+        answers[2u * i + 1u] = found.tie;
     }
 }
