@@ -3,7 +3,9 @@
 //! seed 1, up to 2M), answered as occlusion and as closest hits by the CPU
 //! tracer on all threads and by the GPU (feature `gpu`), in batches of
 //! 2^17 rays traced in parallel as a bake's workers cast them, timed after
-//! a warm-up.
+//! a warm-up. The GPU's rate is its own (every batch waits for a dispatch
+//! of its own); a bake's rate, the GPU with the CPU's threads tracing
+//! beside it while every dispatch is in flight, is printed as "shared".
 //!
 //!     cargo run --release --features gpu --example gpu_rays -- SCENE.glb
 //!         [--resolution 1024] [--rays 2000000] [--hardware]
@@ -98,13 +100,19 @@ fn main() {
     }
     let geometry = &level.geometry;
     let (occluders, sides) = (&geometry.occluders, &geometry.occluder_single_sided);
-    let gpu = GpuTracer::new(occluders, Adapters::Any)
-        .expect("a Vulkan adapter")
-        .expect("occluders");
+    let start = || {
+        GpuTracer::new(occluders, Adapters::Any)
+            .expect("a Vulkan adapter")
+            .expect("occluders")
+    };
+    let mut gpu = start();
+    gpu.exclusive();
     let adapter = gpu.adapter().clone();
     let cpu = Tracer::with_sides(occluders, sides);
     let mut on_gpu = Tracer::with_sides(occluders, sides);
     on_gpu.attach_gpu(gpu);
+    let mut shared = Tracer::with_sides(occluders, sides);
+    shared.attach_gpu(start());
     let n = rays.len();
     println!(
         "{path}: {} triangles, {n} rays ({} blocked) from {} of {} texels; GPU adapter {:?}{}; CPU {} threads",
@@ -119,6 +127,7 @@ fn main() {
     let rate = |secs: f64| n as f64 / secs / 1e6;
     let (cpu_s, cpu_occluded) = timed::<Occlusion>(&cpu, &rays);
     let (gpu_s, gpu_occluded) = timed::<Occlusion>(&on_gpu, &rays);
+    let (shared_s, shared_occluded) = timed::<Occlusion>(&shared, &rays);
     let differ = (cpu_occluded.iter().zip(&gpu_occluded))
         .filter(|(a, b)| a != b)
         .count();
@@ -127,14 +136,20 @@ fn main() {
         .filter(|(a, b)| !**a && **b)
         .count();
     println!(
-        "occlusion: CPU {:.2} Mrays/s, GPU {:.2} Mrays/s ({:.2}x); {occluded} occluded; {differ} of {n} differ ({:.4}%), {only_gpu} occluded on the GPU only",
+        "occlusion: CPU {:.2} Mrays/s, GPU {:.2} Mrays/s ({:.2}x), shared {:.2} Mrays/s ({:.2}x); {occluded} occluded; {differ} of {n} differ ({:.4}%), {only_gpu} occluded on the GPU only; shared: {} differ",
         rate(cpu_s),
         rate(gpu_s),
         cpu_s / gpu_s,
-        100.0 * differ as f64 / n as f64
+        rate(shared_s),
+        cpu_s / shared_s,
+        100.0 * differ as f64 / n as f64,
+        (cpu_occluded.iter().zip(&shared_occluded))
+            .filter(|(a, b)| a != b)
+            .count()
     );
     let (cpu_s, cpu_hits) = timed::<Closest>(&cpu, &rays);
     let (gpu_s, gpu_hits) = timed::<Closest>(&on_gpu, &rays);
+    let (shared_s, shared_hits) = timed::<Closest>(&shared, &rays);
     // Compared as a pass reads them: the distance, the triangle's normal
     // and face (a triangle split into several leaves has several indices).
     let t_max = level.max_distance;
@@ -148,9 +163,12 @@ fn main() {
         })
     };
     let dirs = rays.directions();
-    let differ = (0..n)
-        .filter(|&i| read(&cpu_hits[i], dirs[i]) != read(&gpu_hits[i], dirs[i]))
-        .count();
+    let differing = |hits: &[Option<Hit>]| {
+        (0..n)
+            .filter(|&i| read(&cpu_hits[i], dirs[i]) != read(&hits[i], dirs[i]))
+            .count()
+    };
+    let differ = differing(&gpu_hits);
     let (mut presence, mut distance, mut face) = (0, 0, 0);
     for i in 0..n {
         match (read(&cpu_hits[i], dirs[i]), read(&gpu_hits[i], dirs[i])) {
@@ -165,13 +183,22 @@ fn main() {
     );
     let hit = cpu_hits.iter().filter(|h| h.is_some()).count();
     println!(
-        "closest hits: CPU {:.2} Mrays/s, GPU {:.2} Mrays/s ({:.2}x); {hit} hit; {differ} of {n} differ ({:.4}%)",
+        "closest hits: CPU {:.2} Mrays/s, GPU {:.2} Mrays/s ({:.2}x), shared {:.2} Mrays/s ({:.2}x); {hit} hit; {differ} of {n} differ ({:.4}%); shared: {} differ",
         rate(cpu_s),
         rate(gpu_s),
         cpu_s / gpu_s,
-        100.0 * differ as f64 / n as f64
+        rate(shared_s),
+        cpu_s / shared_s,
+        100.0 * differ as f64 / n as f64,
+        differing(&shared_hits)
     );
-    if let Some(failure) = on_gpu.gpu_failure() {
+    if let Some((gpu, cpu)) = shared.gpu_rays() {
+        println!(
+            "shared: {:.1}% of the rays traced on the GPU",
+            100.0 * gpu as f64 / (gpu + cpu).max(1) as f64
+        );
+    }
+    if let Some(failure) = on_gpu.gpu_failure().or(shared.gpu_failure()) {
         eprintln!("the GPU failed, the CPU answered the rest: {failure}");
         std::process::exit(1);
     }

@@ -239,6 +239,16 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
             report.total_seconds,
             report.rays_per_second / 1e6
         );
+        let b = &report.backend;
+        if let (Some(gpu), Some(cpu)) = (b.rays_on_gpu, b.rays_on_cpu)
+            && gpu + cpu > 0
+        {
+            eprintln!(
+                "aobake: of the batched rays, {:.1}% traced on the GPU, {:.1}% on the CPU beside it",
+                100.0 * gpu as f64 / (gpu + cpu) as f64,
+                100.0 * cpu as f64 / (gpu + cpu) as f64
+            );
+        }
     }
     if let Some(path) = &cli.report {
         let text = serde_json::to_vec_pretty(&report)?;

@@ -220,6 +220,8 @@ fn a_scene_occludes_as_on_the_cpu() {
     tracer.occluded_batch(&rays, &mut on_gpu);
     cpu.occluded_batch(&rays, &mut on_cpu);
     assert_eq!(tracer.gpu_failure(), None);
+    // One worker, a dispatch always free: the GPU traced every ray.
+    assert_eq!(tracer.gpu_rays(), Some((n as u64, 0)));
     let occluded = on_cpu.iter().filter(|&&h| h).count();
     let differ = on_gpu.iter().zip(&on_cpu).filter(|(a, b)| a != b).count();
     eprintln!(
@@ -339,6 +341,93 @@ fn a_lost_device_leaves_the_rest_to_the_cpu() {
     }
     let why = tracer.gpu_failure().unwrap();
     assert!(why.contains("lost") || why.contains("Lost"), "{why}");
+}
+
+/// A batch offered while every dispatch of the GPU's is in flight: the
+/// worker answers a piece of it on the CPU and offers the rest again, so
+/// the answers are the same whoever traced which rays. Refusing every
+/// attempt leaves whole batches to the CPU; refusing every other one, the
+/// first piece (4096 rays) of each batch and the GPU the rest.
+#[test]
+fn a_busy_gpu_shares_its_batches_with_the_cpu() {
+    let (occluders, rays) = helmet_rays(20_000);
+    let n = rays.len() as u64;
+    let cpu = Tracer::new(&occluders);
+    let (mut occluded, mut closest) = (Vec::new(), Vec::new());
+    cpu.occluded_batch(&rays, &mut occluded);
+    cpu.trace_batch::<Closest>(&rays, &mut closest);
+    for (every, on_cpu) in [(1, 2 * n), (2, 2 * 4096)] {
+        let Some(mut busy) = gpu(&occluders) else {
+            return;
+        };
+        busy.refuse_every(every);
+        let tracer = attached(&occluders, busy);
+        let (mut o, mut c) = (Vec::new(), Vec::new());
+        tracer.occluded_batch(&rays, &mut o);
+        tracer.trace_batch::<Closest>(&rays, &mut c);
+        assert_eq!(
+            tracer.gpu_rays(),
+            Some((2 * n - on_cpu, on_cpu)),
+            "every {every}"
+        );
+        assert_eq!(tracer.gpu_failure(), None);
+        // The CPU's pieces are the CPU's answers; the GPU's agree.
+        if on_cpu > 0 {
+            assert_eq!(o[..4096], occluded[..4096], "every {every}");
+            assert_eq!(c[..4096], closest[..4096], "every {every}");
+        }
+        let differ = o.iter().zip(&occluded).filter(|(a, b)| a != b).count();
+        assert!(differ * 10_000 <= rays.len(), "every {every}: {differ}");
+        let differ = differing(&cpu, &rays, &c, &closest);
+        assert!(differ * 10_000 <= rays.len(), "every {every}: {differ}");
+    }
+}
+
+/// A bake whose GPU is busy half the time (the CPU tracing pieces beside
+/// it) is the CPU's bake, and its report says who traced how many rays.
+#[test]
+fn a_bake_shared_with_the_cpu_is_the_cpu_bake() {
+    let Some(probe) = gpu(&quad(0.2)) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let input = common::asset_path("cornell_box.glb");
+    let bake = |device: &str, busy: Option<&str>| {
+        let out = dir.path().join(format!("{device}.glb"));
+        let report = dir.path().join(format!("{device}.json"));
+        let mut run = std::process::Command::new(env!("CARGO_BIN_EXE_aobake"));
+        run.arg(&input).arg(&out).arg("--report").arg(&report);
+        run.args(["--resolution", "96", "--device", device, "-q"]);
+        if let Some(every) = busy {
+            run.env(aobake::trace::gpu::SHARE_VAR, every);
+        }
+        let done = run.output().unwrap();
+        assert!(
+            done.status.success(),
+            "{}",
+            String::from_utf8_lossy(&done.stderr)
+        );
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        (std::fs::read(&out).unwrap(), report)
+    };
+    let (cpu, cpu_report) = bake("cpu", None);
+    let (shared, report) = bake("gpu", Some("2"));
+    let backend = &report["backend"];
+    let count = |k: &str| backend[k].as_u64().unwrap_or_else(|| panic!("{backend}"));
+    let (on_gpu, on_cpu) = (count("rays_on_gpu"), count("rays_on_cpu"));
+    assert!(on_gpu > 0 && on_cpu > 0, "{backend}");
+    // Every ray the passes cast went through a batch (blocked ones too).
+    assert!(on_gpu + on_cpu >= cpu_report["rays_cast"].as_u64().unwrap());
+    assert!(cpu_report["backend"].get("rays_on_gpu").is_none());
+    // On a software adapter the GPU's answers are the CPU's to the bit
+    // (hardware: within the agreement a_gpu_bake_is_the_cpu_bake checks).
+    if probe.adapter().software {
+        assert!(
+            cpu == shared,
+            "the shared bake's bytes differ from the CPU's"
+        );
+    }
 }
 
 /// `--device gpu` whose device is lost mid-bake stops with a one-line

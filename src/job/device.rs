@@ -27,6 +27,13 @@ pub struct Backend {
     /// Why `auto` traced on the CPU, if it looked for a GPU.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cpu_because: Option<String>,
+    /// With a GPU, the rays of the ray batches it answered, and those the
+    /// CPU answered beside it (every dispatch in flight) or after it
+    /// failed; known once the bake has run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rays_on_gpu: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rays_on_cpu: Option<u64>,
 }
 
 impl Backend {
@@ -36,6 +43,16 @@ impl Backend {
             Device::Gpu
         } else {
             Device::Cpu
+        }
+    }
+
+    /// This backend with `tracer`'s counts of the rays each side answered.
+    pub fn with_rays(&self, tracer: &Tracer) -> Backend {
+        let (gpu, cpu) = tracer.gpu_rays().unzip();
+        Backend {
+            rays_on_gpu: gpu,
+            rays_on_cpu: cpu,
+            ..self.clone()
         }
     }
 
@@ -65,17 +82,17 @@ pub fn attach(tracer: &mut Tracer, occluders: &[[Vec3A; 3]], device: Device) -> 
                 tracer.attach_gpu(gpu);
                 Ok(Backend {
                     adapter: Some(adapter),
-                    cpu_because: None,
+                    ..Backend::default()
                 })
             }
             // No occluder: no ray is ever occluded, nothing to trace.
             Ok(None) => Ok(Backend::default()),
             Err(e) if device == Device::Auto => Ok(Backend {
-                adapter: None,
                 cpu_because: Some(match e {
                     Error::Gpu(m) => m,
                     e => e.to_string(),
                 }),
+                ..Backend::default()
             }),
             Err(e) => Err(e),
         }

@@ -76,8 +76,9 @@ pub fn page_seed(seed: u64, page: u32) -> u64 {
 }
 
 impl Level {
-    /// Unwraps into pages and builds the BVH. Validates `s` first and
-    /// keeps them for the pages.
+    /// Unwraps into pages and builds the BVH (at the same time: the
+    /// report's stage `unwrap + bvh`). Validates `s` first and keeps them
+    /// for the pages.
     pub fn new(
         scene: &Scene,
         s: &BakeSettings,
@@ -111,9 +112,6 @@ impl Level {
             .max_distance
             .unwrap_or(DEFAULT_MAX_DISTANCE_FRACTION * diagonal);
         timer.lap("prepare");
-        let label = |k: usize| {
-            scene.geometries[scene.instances[geometry.receivers[k].instance].geometry].label()
-        };
         // Texels where the signal needs them: each mesh's density from a
         // pre-pass over its triangles, traced before the unwrap (the
         // uniform atlas's texel edge, bake units, floors the occluders'
@@ -140,51 +138,24 @@ impl Level {
             timer.lap("signal pre-pass");
         }
         let (early_tracer, scales) = signal.unzip();
-        let atlas = match (s.uv, s.size) {
-            (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
-                let uvs = scene.lightmap_uvs(&geometry.receivers, set)?;
-                atlas::unwrap::existing(&geometry.receivers, uvs, r)
-            }
-            (_, size) => {
-                let options = UnwrapOptions {
-                    size,
-                    padding: s.padding,
-                    packing: s.packing,
-                    min_chart_width: s.min_chart_width,
-                };
-                let pb = progress_bar(run.progress, 0, "unwrap");
-                let report = |stage: &'static str, done: usize, total: Option<usize>| {
-                    pb.set_message(stage);
-                    pb.set_length(total.unwrap_or(done + 1) as u64);
-                    pb.set_position(done as u64);
-                };
-                let atlas = atlas::unwrap::unwrap_with_progress(
-                    &geometry.receivers,
-                    &options,
-                    diagonal,
-                    scales.as_deref(),
-                    &report,
-                );
-                pb.finish_and_clear();
-                match atlas? {
-                    Ok(atlas) => atlas,
-                    Err(c) => {
-                        let page = match size {
-                            AtlasSize::TexelDensity { page_size, .. } => page_size,
-                            AtlasSize::Resolution(r) => r,
-                        };
-                        return Err(Error::Limit(format!(
-                            "{}: a chart of {}x{} texels does not fit a {page}x{page} page; --texel-density {:.4} or less fits it (or raise --page-size)",
-                            label(c.mesh),
-                            c.width,
-                            c.height,
-                            c.fitting_density
-                        )));
-                    }
+        // The BVH (and the GPU's device, where one is used) is built while
+        // the unwrap runs: neither needs the other, and the unwrap's chart
+        // packing is mostly serial, so the build's parallel work fills the
+        // idle threads. (With the signal pre-pass it was built before.)
+        let (atlas, traced) = rayon::join(
+            || unwrap_atlas(scene, &geometry, s, run, scales.as_deref()),
+            || match early_tracer {
+                Some(early) => Ok(early),
+                None => {
+                    let mut tracer =
+                        Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
+                    let backend = device::attach(&mut tracer, &geometry.occluders, s.device)?;
+                    Ok((tracer, backend))
                 }
-            }
-        };
-        timer.lap("unwrap");
+            },
+        );
+        let atlas = atlas?;
+        timer.lap("unwrap + bvh");
         let visibility_meshes: Vec<bool> = geometry
             .receivers
             .iter()
@@ -216,21 +187,10 @@ impl Level {
                 MAX_BAKE_BYTES >> 30
             )));
         }
-        // The GPU, where one is used, was attached before the signal
-        // pre-pass, which traces on it too.
-        let (tracer, backend) = match early_tracer {
-            Some(early) => early,
-            None => {
-                let mut tracer =
-                    Tracer::with_sides(&geometry.occluders, &geometry.occluder_single_sided);
-                let backend = device::attach(&mut tracer, &geometry.occluders, s.device)?;
-                (tracer, backend)
-            }
-        };
+        let (tracer, backend) = traced?;
         if run.progress {
             eprintln!("aobake: {}", backend.line());
         }
-        timer.lap("bvh");
         let max_distance = (max_distance_world / diagonal).min(f32::MAX as f64) as f32;
         let cross_seams = if s.seams == SeamMode::Stitch && atlas.pages.len() > 1 {
             cross_page_seams(&geometry.receivers, &atlas, SMOOTH_DEGREES, FLAT_DEGREES)
@@ -281,4 +241,63 @@ impl Level {
     pub fn texel_density(&self) -> f64 {
         self.atlas.texels_per_unit / self.geometry.space.diagonal
     }
+}
+
+/// The atlas of every page: the UVs asked for (`--uv existing`) or an
+/// unwrap; a chart that fits no page is an error naming its mesh.
+fn unwrap_atlas(
+    scene: &Scene,
+    geometry: &BakeGeometry,
+    s: &BakeSettings,
+    run: &RunOptions,
+    scales: Option<&[f32]>,
+) -> Result<Atlas> {
+    let diagonal = geometry.space.diagonal;
+    let label = |k: usize| {
+        scene.geometries[scene.instances[geometry.receivers[k].instance].geometry].label()
+    };
+    Ok(match (s.uv, s.size) {
+        (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
+            let uvs = scene.lightmap_uvs(&geometry.receivers, set)?;
+            atlas::unwrap::existing(&geometry.receivers, uvs, r)
+        }
+        (_, size) => {
+            let options = UnwrapOptions {
+                size,
+                padding: s.padding,
+                packing: s.packing,
+                min_chart_width: s.min_chart_width,
+            };
+            let pb = progress_bar(run.progress, 0, "unwrap");
+            let report = |stage: &'static str, done: usize, total: Option<usize>| {
+                pb.set_message(stage);
+                pb.set_length(total.unwrap_or(done + 1) as u64);
+                pb.set_position(done as u64);
+            };
+            let atlas = atlas::unwrap::unwrap_with_progress(
+                &geometry.receivers,
+                &options,
+                diagonal,
+                scales,
+                &report,
+            );
+            pb.finish_and_clear();
+            match atlas? {
+                Ok(atlas) => atlas,
+                Err(c) => {
+                    let page = match size {
+                        AtlasSize::TexelDensity { page_size, .. } => page_size,
+                        AtlasSize::Resolution(r) => r,
+                    };
+                    return Err(Error::Limit(format!(
+                        "{}: a chart of {}x{} texels does not fit a {page}x{page} page; --texel-density {:.4} or less fits it (or raise --page-size)",
+                        label(c.mesh),
+                        c.width,
+                        c.height,
+                        c.fitting_density
+                    )));
+                }
+            }
+        }
+    })
 }

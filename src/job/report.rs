@@ -392,7 +392,7 @@ pub fn level_report(
         max_distance: level.max_distance_world,
         seed: s.seed,
         threads: rayon::current_num_threads(),
-        backend: level.backend.clone(),
+        backend: level.backend.with_rays(&level.tracer),
         stages: Vec::new(),
         total_seconds: 0.0,
         warnings,

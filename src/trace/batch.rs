@@ -118,16 +118,18 @@ pub trait Query: Sync {
     fn answer(tracer: &Tracer, rays: &RayBatch, i: usize) -> Self::Answer;
     /// A blocked ray's answer.
     const BLOCKED: Self::Answer;
-    /// Answers the whole batch on `tracer`'s GPU, if this query runs there
-    /// and it has not failed; false leaves it to the CPU.
+    /// Offers rays `from..` of the batch to `tracer`'s GPU, which answers
+    /// them into `out` (one a ray from `from`) if this query runs there, a
+    /// dispatch is free and it has not failed.
     #[cfg(feature = "gpu")]
     fn on_gpu(
         _tracer: &Tracer,
         _gpu: &super::gpu::Attached,
         _rays: &RayBatch,
-        _out: &mut Vec<Self::Answer>,
-    ) -> bool {
-        false
+        _from: usize,
+        _out: &mut [Self::Answer],
+    ) -> super::gpu::Offer {
+        super::gpu::Offer::Failed
     }
 }
 
@@ -146,9 +148,10 @@ impl Query for Occlusion {
         tracer: &Tracer,
         gpu: &super::gpu::Attached,
         rays: &RayBatch,
-        out: &mut Vec<bool>,
-    ) -> bool {
-        gpu.occluded_batch(tracer, rays, out)
+        from: usize,
+        out: &mut [bool],
+    ) -> super::gpu::Offer {
+        gpu.occluded_from(tracer, rays, from, out)
     }
 }
 
@@ -169,40 +172,65 @@ impl Query for Closest {
         tracer: &Tracer,
         gpu: &super::gpu::Attached,
         rays: &RayBatch,
-        out: &mut Vec<Option<Hit>>,
-    ) -> bool {
-        gpu.closest_batch(tracer, rays, out)
+        from: usize,
+        out: &mut [Option<Hit>],
+    ) -> super::gpu::Offer {
+        gpu.closest_from(tracer, rays, from, out)
     }
 }
 
 impl Tracer {
     /// Every ray's answer to `Q`, into `out` (cleared first), in the
     /// batch's order. Pieces of a large batch are traced in parallel.
+    ///
+    /// With a GPU attached, the GPU answers the batch when one of its
+    /// dispatches is free; while all are in flight, this worker answers a
+    /// piece of it on the CPU and offers the rest again, so the CPU's
+    /// threads trace beside the GPU instead of waiting for it. Both answer
+    /// every ray alike, so who answered which piece changes no answer.
     pub fn trace_batch<Q: Query>(&self, rays: &RayBatch, out: &mut Vec<Q::Answer>) {
-        #[cfg(feature = "gpu")]
-        if let Some(gpu) = self.gpu()
-            && Q::on_gpu(self, gpu, rays, out)
-        {
-            return;
-        }
         out.clear();
         out.resize(rays.len(), Q::Answer::default());
-        let piece = |first: usize, out: &mut [Q::Answer]| {
-            for (k, o) in out.iter_mut().enumerate() {
-                let i = first + k;
-                *o = if rays.is_blocked(i) {
-                    Q::BLOCKED
-                } else {
-                    Q::answer(self, rays, i)
-                };
+        #[allow(unused_mut)]
+        let mut from = 0;
+        #[cfg(feature = "gpu")]
+        if let Some(gpu) = self.gpu() {
+            use super::gpu::Offer;
+            while from < rays.len() {
+                match Q::on_gpu(self, gpu, rays, from, &mut out[from..]) {
+                    Offer::Answered => return,
+                    Offer::Busy => {
+                        let end = (from + PIECE).min(rays.len());
+                        self.trace_piece::<Q>(rays, from, &mut out[from..end]);
+                        gpu.answered_on_cpu(end - from);
+                        from = end;
+                    }
+                    Offer::Failed => {
+                        gpu.answered_on_cpu(rays.len() - from);
+                        break;
+                    }
+                }
             }
-        };
-        if rays.len() <= PIECE {
-            piece(0, out);
+        }
+        let out = &mut out[from..];
+        if out.len() <= PIECE {
+            self.trace_piece::<Q>(rays, from, out);
         } else {
             out.par_chunks_mut(PIECE)
                 .enumerate()
-                .for_each(|(k, out)| piece(k * PIECE, out));
+                .for_each(|(k, out)| self.trace_piece::<Q>(rays, from + k * PIECE, out));
+        }
+    }
+
+    /// The answers to `Q` of rays `first..first + out.len()`, one after
+    /// the other on this thread.
+    fn trace_piece<Q: Query>(&self, rays: &RayBatch, first: usize, out: &mut [Q::Answer]) {
+        for (i, o) in (first..).zip(out.iter_mut()) {
+            *o = if rays.is_blocked(i) {
+                Q::BLOCKED
+            } else {
+                Q::answer(self, rays, i)
+            };
         }
     }
 

@@ -188,6 +188,16 @@ impl Tracer {
         None
     }
 
+    /// With a GPU attached, the rays of the batches it answered and those
+    /// the CPU answered instead (all its dispatches in flight, or failed).
+    pub fn gpu_rays(&self) -> Option<(u64, u64)> {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &self.gpu {
+            return Some(g.rays());
+        }
+        None
+    }
+
     /// Why the GPU stopped answering, if a batch failed (the rest were
     /// traced here).
     pub fn gpu_failure(&self) -> Option<&str> {

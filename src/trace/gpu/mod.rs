@@ -27,10 +27,11 @@ mod flatten;
 mod tracer;
 
 pub use flatten::{FlatBvh, GpuNode, GpuTri, flatten};
-pub use tracer::{GpuHit, GpuTracer, LOSE_AFTER_VAR};
+pub use tracer::{GpuHit, GpuTracer, LOSE_AFTER_VAR, SHARE_VAR};
 
 use super::{Hit, RayBatch};
 use crate::error::{Error, Result};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Rays per dispatch: bounds the GPU memory a dispatch takes (32 bytes
 /// of ray, 8 of answer and 8 of its copy to read back each: 48 MiB)
@@ -66,12 +67,30 @@ pub struct AdapterName {
 /// A [`GpuTracer`] behind a CPU tracer ([`super::Tracer::attach_gpu`]):
 /// answers its batches until one fails, then leaves every later
 /// batch to the CPU and keeps the first failure for the job to report.
+/// It shares the batches with the CPU: a batch offered while every
+/// dispatch of the GPU's is in flight is answered by the CPU a piece at a
+/// time, the rest offered again between pieces ([`super::Tracer::trace_batch`]).
 pub struct Attached {
     tracer: GpuTracer,
     /// Per GPU triangle (the BVH2's leaf order), the CPU's (the CWBVH's),
     /// which a [`Hit`] names.
     to_cpu: Vec<u32>,
     failure: std::sync::OnceLock<String>,
+    /// Rays of the batches answered here, and by the CPU instead.
+    on_gpu: AtomicU64,
+    on_cpu: AtomicU64,
+}
+
+/// What became of rays offered to the GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Offer {
+    /// Answered, as the CPU answers them.
+    Answered,
+    /// Every dispatch was in flight: nothing answered, for the CPU to
+    /// start on.
+    Busy,
+    /// The GPU has failed (now or before): the CPU answers every ray.
+    Failed,
 }
 
 impl Attached {
@@ -97,6 +116,8 @@ impl Attached {
             tracer,
             to_cpu,
             failure: std::sync::OnceLock::new(),
+            on_gpu: AtomicU64::new(0),
+            on_cpu: AtomicU64::new(0),
         }
     }
 
@@ -109,82 +130,106 @@ impl Attached {
         self.failure.get().map(String::as_str)
     }
 
-    /// Whether `answered` succeeded: false once a batch has failed (this
-    /// one's failure kept), when the CPU must answer instead.
-    fn answered(&self, answered: impl FnOnce() -> Result<()>) -> bool {
+    /// Rays of the batches so far answered by the GPU and by the CPU (the
+    /// GPU busy or failed).
+    pub fn rays(&self) -> (u64, u64) {
+        (
+            self.on_gpu.load(Ordering::Relaxed),
+            self.on_cpu.load(Ordering::Relaxed),
+        )
+    }
+
+    /// Counts `rays` of a batch answered by the CPU instead.
+    pub(crate) fn answered_on_cpu(&self, rays: usize) {
+        self.on_cpu.fetch_add(rays as u64, Ordering::Relaxed);
+    }
+
+    /// What became of `rays` offered to `answer`: `Failed` once a batch
+    /// has failed (this one's failure kept), when the CPU must answer.
+    fn offer(&self, rays: usize, answer: impl FnOnce() -> Result<bool>) -> Offer {
         if self.failure.get().is_some() {
-            return false;
+            return Offer::Failed;
         }
-        match answered() {
-            Ok(()) => true,
+        match answer() {
+            Ok(true) => {
+                self.on_gpu.fetch_add(rays as u64, Ordering::Relaxed);
+                Offer::Answered
+            }
+            Ok(false) => Offer::Busy,
             Err(e) => {
                 let _ = self.failure.set(match e {
                     Error::Gpu(m) => m,
                     e => e.to_string(),
                 });
-                false
+                Offer::Failed
             }
         }
     }
 
-    /// Answers `rays`' occlusion into `out` as `cpu` (the tracer this is
-    /// attached to) answers it: false (nothing answered) once a batch has
-    /// failed. A ray without a candidate is not occluded; one with a
-    /// candidate the CPU's test hits is; the rest (a candidate only within
-    /// the margin) are traced on the CPU.
-    pub(crate) fn occluded_batch(
+    /// Answers the occlusion of rays `from..` of `rays` into `out` (one
+    /// answer a ray from `from`) as `cpu` (the tracer this is attached to)
+    /// answers it, if the GPU has a dispatch free and has not failed. A ray
+    /// without a candidate is not occluded; one with a candidate the CPU's
+    /// test hits is; the rest (a candidate only within the margin) are
+    /// traced on the CPU.
+    pub(crate) fn occluded_from(
         &self,
         cpu: &super::Tracer,
         rays: &RayBatch,
-        out: &mut Vec<bool>,
-    ) -> bool {
-        self.answered(|| {
+        from: usize,
+        out: &mut [bool],
+    ) -> Offer {
+        self.offer(out.len(), || {
             let mut found = Vec::new();
-            self.tracer.occlusion_candidates(rays, &mut found)?;
-            out.clear();
-            out.extend(found.iter().enumerate().map(|(i, &candidate)| {
-                if rays.is_blocked(i) {
-                    return true;
-                }
-                let Some(k) = candidate else { return false };
-                let (o, d, t_max) = (rays.origins()[i], rays.directions()[i], rays.t_max()[i]);
-                cpu.retest(self.to_cpu[k as usize], o, d, t_max, t_max)
-                    .is_some()
-                    || cpu.occluded(o, d, t_max)
-            }));
-            Ok(())
+            if !(self.tracer).occlusion_candidates_from(rays, from, false, &mut found)? {
+                return Ok(false);
+            }
+            for ((i, &candidate), out) in (from..).zip(&found).zip(out) {
+                *out = rays.is_blocked(i)
+                    || candidate.is_some_and(|k| {
+                        let (o, d, t_max) =
+                            (rays.origins()[i], rays.directions()[i], rays.t_max()[i]);
+                        cpu.retest(self.to_cpu[k as usize], o, d, t_max, t_max)
+                            .is_some()
+                            || cpu.occluded(o, d, t_max)
+                    });
+            }
+            Ok(true)
         })
     }
 
-    /// Answers `rays`' closest hits into `out` as `cpu` (the tracer this
-    /// is attached to) answers them: false (nothing answered) once a batch
-    /// has failed. A ray without a candidate hits nothing; the nearest
-    /// candidate, where the CPU's test hits it and no other occluder's is
-    /// within rounding of it, is the hit, its distance the CPU's test's;
-    /// the rest (a near tie, which rounding or the CPU's traversal order
-    /// decides, or a candidate only within the margin) are traced on the
-    /// CPU.
-    pub(crate) fn closest_batch(
+    /// Answers the closest hits of rays `from..` of `rays` into `out` as
+    /// `cpu` (the tracer this is attached to) answers them, if the GPU has
+    /// a dispatch free and has not failed. A ray without a candidate hits
+    /// nothing; the nearest candidate, where the CPU's test hits it and no
+    /// other occluder's is within rounding of it, is the hit, its distance
+    /// the CPU's test's; the rest (a near tie, which rounding or the CPU's
+    /// traversal order decides, or a candidate only within the margin)
+    /// are traced on the CPU.
+    pub(crate) fn closest_from(
         &self,
         cpu: &super::Tracer,
         rays: &RayBatch,
-        out: &mut Vec<Option<Hit>>,
-    ) -> bool {
-        self.answered(|| {
+        from: usize,
+        out: &mut [Option<Hit>],
+    ) -> Offer {
+        self.offer(out.len(), || {
             let mut found = Vec::new();
-            self.tracer.closest_candidates(rays, &mut found)?;
-            out.clear();
-            out.extend(found.iter().enumerate().map(|(i, hit)| {
-                let hit = (*hit)?;
-                let (o, d) = (rays.origins()[i], rays.directions()[i]);
-                let (t_max, depth) = (rays.t_max()[i], rays.depths()[i]);
-                let triangle = self.to_cpu[hit.triangle as usize];
-                match cpu.retest(triangle, o, d, t_max, depth) {
-                    Some(found) if hit.tie.is_none() => Some(found),
-                    _ => cpu.trace_closest(o, d, t_max, depth),
-                }
-            }));
-            Ok(())
+            if !(self.tracer).closest_candidates_from(rays, from, false, &mut found)? {
+                return Ok(false);
+            }
+            for ((i, hit), out) in (from..).zip(&found).zip(out) {
+                *out = hit.and_then(|hit| {
+                    let (o, d) = (rays.origins()[i], rays.directions()[i]);
+                    let (t_max, depth) = (rays.t_max()[i], rays.depths()[i]);
+                    let triangle = self.to_cpu[hit.triangle as usize];
+                    match cpu.retest(triangle, o, d, t_max, depth) {
+                        Some(found) if hit.tie.is_none() => Some(found),
+                        _ => cpu.trace_closest(o, d, t_max, depth),
+                    }
+                });
+            }
+            Ok(true)
         })
     }
 }

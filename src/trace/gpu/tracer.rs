@@ -64,6 +64,10 @@ pub struct GpuHit {
 /// device after this many dispatches, which wgpu reports as a lost device.
 pub const LOSE_AFTER_VAR: &str = "AOBAKE_GPU_LOSE_AFTER";
 
+/// For tests of batches shared with the CPU: every how many attempts to
+/// start a batch find the GPU busy ([`GpuTracer::refuse_every`]).
+pub const SHARE_VAR: &str = "AOBAKE_GPU_BUSY_EVERY";
+
 /// The occluders on the GPU, and what traces rays against them.
 pub struct GpuTracer {
     device: wgpu::Device,
@@ -90,6 +94,12 @@ pub struct GpuTracer {
     lost: Arc<Mutex<Option<String>>>,
     dispatches: AtomicU64,
     lose_after: Option<u64>,
+    /// Attempts to start a batch without waiting, and every how many of
+    /// them a test has refused ([`GpuTracer::refuse_every`]).
+    attempts: AtomicU64,
+    refuse_every: Option<u64>,
+    /// Every batch waits for a dispatch ([`GpuTracer::exclusive`]).
+    exclusive: bool,
 }
 
 /// One dispatch's buffers, for up to `capacity` rays.
@@ -224,9 +234,8 @@ impl GpuTracer {
             })
         };
         let (occluded, closest) = (pipeline("occluded"), pipeline("closest"));
-        let lose_after = std::env::var(LOSE_AFTER_VAR)
-            .ok()
-            .and_then(|v| v.parse().ok());
+        let var = |name| std::env::var(name).ok().and_then(|v| v.parse().ok());
+        let (lose_after, refuse_every) = (var(LOSE_AFTER_VAR), var(SHARE_VAR));
         let tracer = GpuTracer {
             device,
             queue,
@@ -244,6 +253,9 @@ impl GpuTracer {
             lost,
             dispatches: AtomicU64::new(0),
             lose_after,
+            attempts: AtomicU64::new(0),
+            refuse_every: refuse_every.map(|k: u64| k.max(1)),
+            exclusive: false,
         };
         tracer.check()?;
         Ok(Some(tracer))
@@ -290,10 +302,25 @@ impl GpuTracer {
     /// Per ray of `rays`, a triangle (leaf order) that may occlude it in
     /// (0, t_max], `None` where none does (a blocked ray: `None`, the
     /// caller answers it), into `out` (cleared first), in the batch's order.
+    /// Waits for a set of dispatch buffers when all are in flight.
     pub fn occlusion_candidates(&self, rays: &RayBatch, out: &mut Vec<Option<u32>>) -> Result<()> {
         out.clear();
-        out.reserve(rays.len());
-        self.batch(rays, Kind::Occluded, |answers| {
+        self.occlusion_candidates_from(rays, 0, true, out)
+            .map(|_| ())
+    }
+
+    /// [`GpuTracer::occlusion_candidates`] of rays `from..` of `rays`,
+    /// appended to `out`; without `wait`, `Ok(false)` (nothing traced)
+    /// when every set of dispatch buffers is in flight.
+    pub fn occlusion_candidates_from(
+        &self,
+        rays: &RayBatch,
+        from: usize,
+        wait: bool,
+        out: &mut Vec<Option<u32>>,
+    ) -> Result<bool> {
+        out.reserve(rays.len().saturating_sub(from));
+        self.batch(rays, from, Kind::Occluded, wait, |answers| {
             out.extend(answers.iter().map(|&a| (a != NONE).then_some(a)))
         })
     }
@@ -301,10 +328,24 @@ impl GpuTracer {
     /// Per ray of `rays`, the nearest candidate hit in (0, t_max] cut at
     /// its depth ([`crate::trace::Tracer::trace_closest`]), `None` where no
     /// triangle is hit (a blocked ray: `None`), into `out` (cleared first).
+    /// Waits for a set of dispatch buffers when all are in flight.
     pub fn closest_candidates(&self, rays: &RayBatch, out: &mut Vec<Option<GpuHit>>) -> Result<()> {
         out.clear();
-        out.reserve(rays.len());
-        self.batch(rays, Kind::Closest, |answers| {
+        self.closest_candidates_from(rays, 0, true, out).map(|_| ())
+    }
+
+    /// [`GpuTracer::closest_candidates`] of rays `from..` of `rays`,
+    /// appended to `out`; without `wait`, `Ok(false)` (nothing traced)
+    /// when every set of dispatch buffers is in flight.
+    pub fn closest_candidates_from(
+        &self,
+        rays: &RayBatch,
+        from: usize,
+        wait: bool,
+        out: &mut Vec<Option<GpuHit>>,
+    ) -> Result<bool> {
+        out.reserve(rays.len().saturating_sub(from));
+        self.batch(rays, from, Kind::Closest, wait, |answers| {
             out.extend(answers.chunks_exact(2).map(|a| {
                 (a[0] != NONE).then(|| GpuHit {
                     triangle: a[0],
@@ -314,25 +355,43 @@ impl GpuTracer {
         })
     }
 
-    /// `rays` in dispatches of at most [`RAYS_PER_DISPATCH`], each one's
-    /// answers handed to `read` in order.
-    fn batch(&self, rays: &RayBatch, kind: Kind, mut read: impl FnMut(&[u32])) -> Result<()> {
-        let mut packed: Vec<[f32; 8]> = Vec::with_capacity(rays.len().min(RAYS_PER_DISPATCH));
-        let mut start = 0;
+    /// Rays `from..` of `rays` in dispatches of at most
+    /// [`RAYS_PER_DISPATCH`] through one set of dispatch buffers, each
+    /// dispatch's answers handed to `read` in order. Without `wait`,
+    /// `Ok(false)` and nothing traced when no set is free.
+    fn batch(
+        &self,
+        rays: &RayBatch,
+        from: usize,
+        kind: Kind,
+        wait: bool,
+        mut read: impl FnMut(&[u32]),
+    ) -> Result<bool> {
+        let Some(mut slots) = self.free_slots(wait) else {
+            return Ok(false);
+        };
+        let mut packed: Vec<[f32; 8]> =
+            Vec::with_capacity(rays.len().saturating_sub(from).min(RAYS_PER_DISPATCH));
+        let mut start = from;
         while start < rays.len() {
             let end = (start + RAYS_PER_DISPATCH).min(rays.len());
             packed.clear();
             packed.par_extend((start..end).into_par_iter().map(|i| pack(rays, i, kind)));
-            self.dispatch(&packed, kind, &mut read)?;
+            self.dispatch(&mut slots, &packed, kind, &mut read)?;
             start = end;
         }
-        Ok(())
+        Ok(true)
     }
 
     /// One dispatch: uploads the rays, runs the shader, reads the answers
     /// back into `read`.
-    fn dispatch(&self, rays: &[[f32; 8]], kind: Kind, read: &mut impl FnMut(&[u32])) -> Result<()> {
-        let mut slots = self.free_slots();
+    fn dispatch(
+        &self,
+        slots: &mut Option<Slots>,
+        rays: &[[f32; 8]],
+        kind: Kind,
+        read: &mut impl FnMut(&[u32]),
+    ) -> Result<()> {
         if self.lose_after == Some(self.dispatches.fetch_add(1, Ordering::Relaxed)) {
             self.device.destroy();
         }
@@ -397,18 +456,47 @@ impl GpuTracer {
     }
 
     /// A set of dispatch buffers no other dispatch holds: the first free
-    /// one from a rotating start, else (all in flight) the next in turn
-    /// once it is free.
-    fn free_slots(&self) -> std::sync::MutexGuard<'_, Option<Slots>> {
+    /// one from a rotating start; all in flight, the next in turn once it
+    /// is free (`wait`) or none. (A test's [`GpuTracer::refuse_every`]
+    /// refuses some attempts as if all were in flight.)
+    fn free_slots(&self, wait: bool) -> Option<std::sync::MutexGuard<'_, Option<Slots>>> {
+        let wait = wait || self.exclusive;
         let first = self.next_slot.fetch_add(1, Ordering::Relaxed);
+        if !wait
+            && let Some(k) = self.refuse_every
+            && self
+                .attempts
+                .fetch_add(1, Ordering::Relaxed)
+                .is_multiple_of(k)
+        {
+            return None;
+        }
         for k in 0..IN_FLIGHT {
             if let Ok(slots) = self.slots[(first + k) % IN_FLIGHT].try_lock() {
-                return slots;
+                return Some(slots);
             }
         }
-        self.slots[first % IN_FLIGHT]
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
+        wait.then(|| {
+            self.slots[first % IN_FLIGHT]
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+        })
+    }
+
+    /// For measurements of the GPU alone: every batch waits for a dispatch
+    /// instead of being shared with the CPU while all are in flight.
+    #[doc(hidden)]
+    pub fn exclusive(&mut self) {
+        self.exclusive = true;
+    }
+
+    /// For tests of batches shared with the CPU: of the attempts to start
+    /// a batch without waiting, the 1st, (k+1)th, (2k+1)th, ... find every
+    /// set of dispatch buffers in flight, as [`SHARE_VAR`] asks from the
+    /// environment.
+    #[doc(hidden)]
+    pub fn refuse_every(&mut self, k: u64) {
+        self.refuse_every = Some(k.max(1));
     }
 
     /// Buffers for dispatches of up to `capacity` rays.
