@@ -244,7 +244,7 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
             && gpu + cpu > 0
         {
             eprintln!(
-                "aobake: of the batched rays, {:.1}% traced on the GPU, {:.1}% on the CPU beside it",
+                "aobake: of the batched rays, {:.1}% traced on the GPU, {:.1}% on the CPU",
                 100.0 * gpu as f64 / (gpu + cpu) as f64,
                 100.0 * cpu as f64 / (gpu + cpu) as f64
             );

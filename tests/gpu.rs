@@ -470,6 +470,59 @@ fn a_gpu_bake_whose_device_is_lost_writes_nothing() {
     assert_eq!(std::fs::read(&input).unwrap(), before);
 }
 
+/// `--device auto` whose device is lost mid-bake: the CPU traces the rest,
+/// the bake writes its output, exits 0 and warns in one line; the output is
+/// the CPU bake's (bytes, on a software adapter). (`auto` is let take
+/// lavapipe here, as CI has no hardware GPU.)
+#[test]
+fn an_auto_bake_whose_device_is_lost_finishes_on_the_cpu() {
+    let Some(probe) = gpu(&quad(0.2)) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let input = common::asset_path("cornell_box.glb");
+    let bake = |device: &str, lose: bool| {
+        let out = dir.path().join(format!("{device}.glb"));
+        let report = dir.path().join(format!("{device}.json"));
+        let mut run = std::process::Command::new(env!("CARGO_BIN_EXE_aobake"));
+        run.arg(&input).arg(&out).arg("--report").arg(&report);
+        run.args(["--resolution", "64", "--rays", "16", "--device", device]);
+        if lose {
+            run.env(aobake::trace::gpu::AUTO_SOFTWARE_VAR, "1");
+            run.env(aobake::trace::gpu::LOSE_AFTER_VAR, "1");
+        }
+        let done = run.output().unwrap();
+        let err = String::from_utf8_lossy(&done.stderr).into_owned();
+        assert_eq!(done.status.code(), Some(0), "{err}");
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        (std::fs::read(&out).unwrap(), report, err)
+    };
+    let (cpu, _, _) = bake("cpu", false);
+    let (auto, report, err) = bake("auto", true);
+    let warned: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("aobake: warning: the GPU failed mid-bake"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{err}");
+    assert!(warned[0].contains("lost"), "{}", warned[0]);
+    assert!(
+        warned[0].ends_with("the rest was traced on the CPU"),
+        "{}",
+        warned[0]
+    );
+    let backend = &report["backend"];
+    assert!(backend["adapter"].is_string(), "{backend}");
+    assert!(backend["rays_on_cpu"].as_u64().unwrap() > 0, "{backend}");
+    assert_eq!(report["warnings"].as_array().unwrap().len(), 1);
+    if probe.adapter().software {
+        assert!(
+            cpu == auto,
+            "the bake finished on the CPU differs from the CPU's"
+        );
+    }
+}
+
 /// Which adapters count: a software one (lavapipe) is no hardware GPU, so
 /// where it is all there is, asking for hardware is a clear error.
 #[test]

@@ -70,11 +70,14 @@ impl Backend {
 pub fn attach(tracer: &mut Tracer, occluders: &[[Vec3A; 3]], device: Device) -> Result<Backend> {
     #[cfg(feature = "gpu")]
     {
-        use crate::trace::gpu::{Adapters, GpuTracer};
+        use crate::trace::gpu::{AUTO_SOFTWARE_VAR, Adapters, GpuTracer};
+        // (A test of `auto`'s fallbacks on a machine with lavapipe only
+        // lets it take a software adapter.)
+        let software = std::env::var(AUTO_SOFTWARE_VAR).is_ok_and(|v| v == "1");
         let which = match device {
             Device::Cpu => return Ok(Backend::default()),
-            Device::Auto => Adapters::Hardware,
-            Device::Gpu => Adapters::Any,
+            Device::Auto if !software => Adapters::Hardware,
+            Device::Auto | Device::Gpu => Adapters::Any,
         };
         match GpuTracer::new(occluders, which) {
             Ok(Some(gpu)) => {

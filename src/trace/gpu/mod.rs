@@ -27,7 +27,7 @@ mod flatten;
 mod tracer;
 
 pub use flatten::{FlatBvh, GpuNode, GpuTri, flatten};
-pub use tracer::{GpuHit, GpuTracer, LOSE_AFTER_VAR, SHARE_VAR};
+pub use tracer::{AUTO_SOFTWARE_VAR, GpuHit, GpuTracer, LOSE_AFTER_VAR, SHARE_VAR};
 
 use super::{Hit, RayBatch};
 use crate::error::{Error, Result};

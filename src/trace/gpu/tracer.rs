@@ -64,6 +64,10 @@ pub struct GpuHit {
 /// device after this many dispatches, which wgpu reports as a lost device.
 pub const LOSE_AFTER_VAR: &str = "AOBAKE_GPU_LOSE_AFTER";
 
+/// For tests of `--device auto` on a machine without a hardware GPU (the
+/// CI's): set to 1, `auto` takes a software adapter too.
+pub const AUTO_SOFTWARE_VAR: &str = "AOBAKE_GPU_AUTO_SOFTWARE";
+
 /// For tests of batches shared with the CPU: every how many attempts to
 /// start a batch find the GPU busy ([`GpuTracer::refuse_every`]).
 pub const SHARE_VAR: &str = "AOBAKE_GPU_BUSY_EVERY";
