@@ -5,7 +5,10 @@
 //! 2^17 rays traced in parallel as a bake's workers cast them, timed after
 //! a warm-up. The GPU's rate is its own (every batch waits for a dispatch
 //! of its own); a bake's rate, the GPU with the CPU's threads tracing
-//! beside it while every dispatch is in flight, is printed as "shared".
+//! beside it while every dispatch is in flight, is printed as "shared";
+//! and the GPU's occlusion rate with the rays by direction instead of in
+//! the batch's order (trace/gpu/order.rs), an order yet to be measured on
+//! a GPU.
 //!
 //!     cargo run --release --features gpu --example gpu_rays -- SCENE.glb
 //!         [--resolution 1024] [--rays 2000000] [--hardware]
@@ -113,6 +116,13 @@ fn main() {
     on_gpu.attach_gpu(gpu);
     let mut shared = Tracer::with_sides(occluders, sides);
     shared.attach_gpu(start());
+    // The GPU alone with the rays by direction rather than in the batch's
+    // order (receiver by receiver): trace/gpu/order.rs.
+    let mut by_direction = Tracer::with_sides(occluders, sides);
+    let mut gpu = start();
+    gpu.exclusive();
+    gpu.order_by_direction();
+    by_direction.attach_gpu(gpu);
     let n = rays.len();
     println!(
         "{path}: {} triangles, {n} rays ({} blocked) from {} of {} texels; GPU adapter {:?}{}; CPU {} threads",
@@ -128,6 +138,8 @@ fn main() {
     let (cpu_s, cpu_occluded) = timed::<Occlusion>(&cpu, &rays);
     let (gpu_s, gpu_occluded) = timed::<Occlusion>(&on_gpu, &rays);
     let (shared_s, shared_occluded) = timed::<Occlusion>(&shared, &rays);
+    let (by_direction_s, by_direction_occluded) = timed::<Occlusion>(&by_direction, &rays);
+    let in_order_s = gpu_s;
     let differ = (cpu_occluded.iter().zip(&gpu_occluded))
         .filter(|(a, b)| a != b)
         .count();
@@ -191,6 +203,14 @@ fn main() {
         cpu_s / shared_s,
         100.0 * differ as f64 / n as f64,
         differing(&shared_hits)
+    );
+    println!(
+        "occlusion on the GPU with the rays by direction: {:.2} Mrays/s ({:.2}x the rate in the batch's order); {} differ",
+        rate(by_direction_s),
+        in_order_s / by_direction_s,
+        (cpu_occluded.iter().zip(&by_direction_occluded))
+            .filter(|(a, b)| a != b)
+            .count()
     );
     if let Some((gpu, cpu)) = shared.gpu_rays() {
         println!(

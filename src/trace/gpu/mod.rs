@@ -10,6 +10,8 @@
 //! - `flatten`: obvhs's BVH2 as the shader's nodes and triangles.
 //! - `tracer`: [`GpuTracer`], the device, its pipelines and the buffers
 //!   of the dispatches in flight.
+//! - `order`: rays by direction, so that a subgroup's walk the same nodes
+//!   (an order for measuring on a GPU; a bake keeps the batch's).
 //! - `traverse.wgsl`: the traversal (a short stack, the nearer child first)
 //!   and the CPU's triangle test.
 //!
@@ -24,6 +26,7 @@
 //! [`Closest`]: super::Closest
 
 mod flatten;
+mod order;
 mod tracer;
 
 pub use flatten::{FlatBvh, GpuNode, GpuTri, flatten};
