@@ -200,8 +200,9 @@ pub struct BakeSettings {
     /// Where rays are traced: auto (a hardware GPU when one is found, else
     /// the CPU; a software Vulkan adapter such as lavapipe does not count),
     /// cpu, or gpu (any Vulkan adapter, software ones included; an error
-    /// without one). The GPU answers the same rays as the CPU up to
-    /// rounding at triangle edges, so its bytes may differ
+    /// without one). The CPU's own triangle test settles the GPU's
+    /// candidate hits, so the GPU answers the rays as the CPU does, and
+    /// the CPU's threads trace beside it while it is busy
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.device))]
     #[serde(default, skip_serializing_if = "Device::traces_on_cpu")]
     pub device: Device,

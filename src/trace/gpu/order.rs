@@ -66,6 +66,18 @@ pub fn by_direction(rays: &RayBatch, start: usize, end: usize, order: &mut Vec<u
     }
 }
 
+/// Into `answers`, in the batch's order, the `words` words a ray of
+/// `sorted`, the answers to the rays `order` (from `by_direction`, rays
+/// from `start`) in that order.
+pub fn put_back(order: &[u32], start: usize, words: usize, sorted: &[u32], answers: &mut Vec<u32>) {
+    answers.clear();
+    answers.resize(sorted.len(), 0);
+    for (&i, a) in order.iter().zip(sorted.chunks_exact(words)) {
+        let at = (i as usize - start) * words;
+        answers[at..at + words].copy_from_slice(a);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -127,5 +139,10 @@ mod tests {
         // Rays 2 and 4 (+X), 3 (+Z) keep their order within their cells.
         let at = |i: u32| order.iter().position(|&j| j == i).unwrap();
         assert!(at(2) < at(4));
+        // Answers of two words a ray, in that order, put back in the batch's.
+        let sorted: Vec<u32> = order.iter().flat_map(|&i| [i, 10 * i]).collect();
+        let mut answers = Vec::new();
+        put_back(&order, 1, 2, &sorted, &mut answers);
+        assert_eq!(answers, vec![1, 10, 2, 20, 3, 30, 4, 40, 5, 50]);
     }
 }

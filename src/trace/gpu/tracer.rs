@@ -394,12 +394,7 @@ impl GpuTracer {
                 order::by_direction(rays, start, end, &mut order);
                 packed.par_extend(order.par_iter().map(|&i| pack(rays, i as usize, kind)));
                 self.dispatch(&mut slots, &packed, kind, &mut |sorted: &[u32]| {
-                    answers.clear();
-                    answers.resize(sorted.len(), NONE);
-                    for (&i, a) in order.iter().zip(sorted.chunks_exact(words)) {
-                        let at = (i as usize - start) * words;
-                        answers[at..at + words].copy_from_slice(a);
-                    }
+                    order::put_back(&order, start, words, sorted, &mut answers);
                     read(&answers)
                 })?;
             }
