@@ -140,9 +140,12 @@ fn main() {
     let (shared_s, shared_occluded) = timed::<Occlusion>(&shared, &rays);
     let (by_direction_s, by_direction_occluded) = timed::<Occlusion>(&by_direction, &rays);
     let in_order_s = gpu_s;
-    let differ = (cpu_occluded.iter().zip(&gpu_occluded))
-        .filter(|(a, b)| a != b)
-        .count();
+    let differing_occluded = |answers: &[bool]| {
+        (cpu_occluded.iter().zip(answers))
+            .filter(|(a, b)| a != b)
+            .count()
+    };
+    let differ = differing_occluded(&gpu_occluded);
     let occluded = cpu_occluded.iter().filter(|&&o| o).count();
     let only_gpu = (cpu_occluded.iter().zip(&gpu_occluded))
         .filter(|(a, b)| !**a && **b)
@@ -155,9 +158,7 @@ fn main() {
         rate(shared_s),
         cpu_s / shared_s,
         100.0 * differ as f64 / n as f64,
-        (cpu_occluded.iter().zip(&shared_occluded))
-            .filter(|(a, b)| a != b)
-            .count()
+        differing_occluded(&shared_occluded)
     );
     let (cpu_s, cpu_hits) = timed::<Closest>(&cpu, &rays);
     let (gpu_s, gpu_hits) = timed::<Closest>(&on_gpu, &rays);
@@ -208,9 +209,7 @@ fn main() {
         "occlusion on the GPU with the rays by direction: {:.2} Mrays/s ({:.2}x the rate in the batch's order); {} differ",
         rate(by_direction_s),
         in_order_s / by_direction_s,
-        (cpu_occluded.iter().zip(&by_direction_occluded))
-            .filter(|(a, b)| a != b)
-            .count()
+        differing_occluded(&by_direction_occluded)
     );
     if let Some((gpu, cpu)) = shared.gpu_rays() {
         println!(
@@ -218,7 +217,10 @@ fn main() {
             100.0 * gpu as f64 / (gpu + cpu).max(1) as f64
         );
     }
-    if let Some(failure) = on_gpu.gpu_failure().or(shared.gpu_failure()) {
+    let failed = [&on_gpu, &shared, &by_direction]
+        .into_iter()
+        .find_map(|t| t.gpu_failure());
+    if let Some(failure) = failed {
         eprintln!("the GPU failed, the CPU answered the rest: {failure}");
         std::process::exit(1);
     }

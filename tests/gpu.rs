@@ -383,6 +383,28 @@ fn a_busy_gpu_shares_its_batches_with_the_cpu() {
     }
 }
 
+/// The Cornell box baked by the command line into `dir` (files named by
+/// `device`) with `--device device`, `args` and the environment `env`; it
+/// must exit 0. Its output's bytes, its report and its stderr.
+fn cli_bake(
+    dir: &std::path::Path,
+    device: &str,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> (Vec<u8>, serde_json::Value, String) {
+    let out = dir.join(format!("{device}.glb"));
+    let report = dir.join(format!("{device}.json"));
+    let mut run = std::process::Command::new(env!("CARGO_BIN_EXE_aobake"));
+    run.arg(common::asset_path("cornell_box.glb")).arg(&out);
+    run.arg("--report").arg(&report).args(["--device", device]);
+    run.args(args).envs(env.iter().copied());
+    let done = run.output().unwrap();
+    let err = String::from_utf8_lossy(&done.stderr).into_owned();
+    assert_eq!(done.status.code(), Some(0), "{err}");
+    let report = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    (std::fs::read(&out).unwrap(), report, err)
+}
+
 /// A bake whose GPU is busy half the time (the CPU tracing pieces beside
 /// it) is the CPU's bake, and its report says who traced how many rays.
 #[test]
@@ -391,28 +413,10 @@ fn a_bake_shared_with_the_cpu_is_the_cpu_bake() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let input = common::asset_path("cornell_box.glb");
-    let bake = |device: &str, busy: Option<&str>| {
-        let out = dir.path().join(format!("{device}.glb"));
-        let report = dir.path().join(format!("{device}.json"));
-        let mut run = std::process::Command::new(env!("CARGO_BIN_EXE_aobake"));
-        run.arg(&input).arg(&out).arg("--report").arg(&report);
-        run.args(["--resolution", "96", "--device", device, "-q"]);
-        if let Some(every) = busy {
-            run.env(aobake::trace::gpu::SHARE_VAR, every);
-        }
-        let done = run.output().unwrap();
-        assert!(
-            done.status.success(),
-            "{}",
-            String::from_utf8_lossy(&done.stderr)
-        );
-        let report: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-        (std::fs::read(&out).unwrap(), report)
-    };
-    let (cpu, cpu_report) = bake("cpu", None);
-    let (shared, report) = bake("gpu", Some("2"));
+    let args = ["--resolution", "96", "-q"];
+    let (cpu, cpu_report, _) = cli_bake(dir.path(), "cpu", &args, &[]);
+    let busy = [(aobake::trace::gpu::SHARE_VAR, "2")];
+    let (shared, report, _) = cli_bake(dir.path(), "gpu", &args, &busy);
     let backend = &report["backend"];
     let count = |k: &str| backend[k].as_u64().unwrap_or_else(|| panic!("{backend}"));
     let (on_gpu, on_cpu) = (count("rays_on_gpu"), count("rays_on_cpu"));
@@ -480,26 +484,13 @@ fn an_auto_bake_whose_device_is_lost_finishes_on_the_cpu() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let input = common::asset_path("cornell_box.glb");
-    let bake = |device: &str, lose: bool| {
-        let out = dir.path().join(format!("{device}.glb"));
-        let report = dir.path().join(format!("{device}.json"));
-        let mut run = std::process::Command::new(env!("CARGO_BIN_EXE_aobake"));
-        run.arg(&input).arg(&out).arg("--report").arg(&report);
-        run.args(["--resolution", "64", "--rays", "16", "--device", device]);
-        if lose {
-            run.env(aobake::trace::gpu::AUTO_SOFTWARE_VAR, "1");
-            run.env(aobake::trace::gpu::LOSE_AFTER_VAR, "1");
-        }
-        let done = run.output().unwrap();
-        let err = String::from_utf8_lossy(&done.stderr).into_owned();
-        assert_eq!(done.status.code(), Some(0), "{err}");
-        let report: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-        (std::fs::read(&out).unwrap(), report, err)
-    };
-    let (cpu, _, _) = bake("cpu", false);
-    let (auto, report, err) = bake("auto", true);
+    let args = ["--resolution", "64", "--rays", "16"];
+    let (cpu, _, _) = cli_bake(dir.path(), "cpu", &args, &[]);
+    let lose = [
+        (aobake::trace::gpu::AUTO_SOFTWARE_VAR, "1"),
+        (aobake::trace::gpu::LOSE_AFTER_VAR, "1"),
+    ];
+    let (auto, report, err) = cli_bake(dir.path(), "auto", &args, &lose);
     let warned: Vec<&str> = err
         .lines()
         .filter(|l| l.starts_with("aobake: warning: the GPU failed mid-bake"))

@@ -184,7 +184,10 @@ impl Attached {
     ) -> Offer {
         self.offer(out.len(), || {
             let mut found = Vec::new();
-            if !(self.tracer).occlusion_candidates_from(rays, from, false, &mut found)? {
+            if !self
+                .tracer
+                .occlusion_candidates_from(rays, from, false, &mut found)?
+            {
                 return Ok(false);
             }
             for ((i, &candidate), out) in (from..).zip(&found).zip(out) {
@@ -218,7 +221,10 @@ impl Attached {
     ) -> Offer {
         self.offer(out.len(), || {
             let mut found = Vec::new();
-            if !(self.tracer).closest_candidates_from(rays, from, false, &mut found)? {
+            if !self
+                .tracer
+                .closest_candidates_from(rays, from, false, &mut found)?
+            {
                 return Ok(false);
             }
             for ((i, hit), out) in (from..).zip(&found).zip(out) {
