@@ -11,9 +11,9 @@ use aobake::atlas::AtlasSize;
 use aobake::bake::{BakeParams, mc};
 use aobake::job::settings::BakeSettings;
 use aobake::job::{Job, RunOptions};
+use aobake::lightmap::bilinear_taps as taps;
 use aobake::lightmap::engine_view::{TexelClass, class_of, lookup};
 use aobake::lightmap::seams::SeamMode;
-use aobake::lightmap::seams::metric::taps;
 use aobake::stage::StageTimer;
 
 fn rmse(v: &[f64]) -> f64 {

@@ -13,8 +13,8 @@
 //! off by up to ~0.7 texels of slope, and the cut's two sides disagree.
 
 use aobake::atlas::rasterize::{SurfaceTri, closest_point_barycentric, inside};
+use aobake::lightmap::bilinear_taps as taps;
 use aobake::lightmap::border::{FIT_WEIGHT, SEAM_SCALE, STEP, points, step_span, step_texels};
-use aobake::lightmap::seams::metric::taps;
 use aobake::lightmap::seams::{Anchor, Seam, band, stitch_page};
 use aobake::sh::{K0, SH_COUNT};
 use glam::{Vec2, Vec3};

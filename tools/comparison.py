@@ -12,7 +12,8 @@ the adaptive curve) over Monte Carlo's.
 """
 import json
 import os
-import sys
+
+from toolargs import parser, path
 
 
 def default_run(runs, method):
@@ -68,13 +69,16 @@ def row(path):
 
 
 def main():
+    ap = parser(__doc__)
+    ap.add_argument("reports", nargs="+", type=path, help="`aobake report` output folders")
+    reports = ap.parse_args().reports
     print(
         "| report | run | end-to-end s | rays/texel | AO RMSE | AO p99 | SH RMSE L0 / L1 / L2 "
         "| time vs mc:256 | equal error on every metric | cheapest run of the sweep holding every metric "
         "| equal-AO-RMSE time |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for p in sys.argv[1:]:
+    for p in reports:
         print(row(p))
 
 

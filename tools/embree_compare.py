@@ -4,16 +4,21 @@ with Embree (pip install embreex numpy), on 2 threads, as occlusion queries.
 Usage: python3 tools/embree_compare.py DIR [threads]
 Prints rays/s and how many rays are occluded (compare with the bench's obvhs line).
 """
-import sys
 import threading
 import time
 
-import numpy as np
-from embreex import rtcore_scene as rtcs
-from embreex.mesh_construction import TriangleMesh
+from toolargs import parser, path
 
-d = sys.argv[1]
-threads = int(sys.argv[2]) if len(sys.argv) > 2 else 2
+ap = parser(__doc__)
+ap.add_argument('dir', type=path, help='the folder of --dump-rays')
+ap.add_argument('threads', nargs='?', type=int, default=2, help='Embree threads (default 2)')
+args = ap.parse_args()
+
+import numpy as np  # noqa: E402 (after the arguments, so --help needs no Embree)
+from embreex import rtcore_scene as rtcs  # noqa: E402
+from embreex.mesh_construction import TriangleMesh  # noqa: E402
+
+d, threads = args.dir, args.threads
 tris = np.fromfile(f"{d}/tris.f32", dtype=np.float32).reshape(-1, 3, 3)
 rays = np.fromfile(f"{d}/rays.f32", dtype=np.float32).reshape(-1, 10)
 t = time.perf_counter()

@@ -11,6 +11,8 @@ diagonal) and with the project's.
 import os
 import sys
 
+from toolargs import parser, path
+
 import numpy as np
 
 EVAL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "tools", "eval")
@@ -24,8 +26,12 @@ def rmse(e):
 
 
 def main():
-    csv, glb = sys.argv[1], sys.argv[2]
-    rays = int(sys.argv[3]) if len(sys.argv) > 3 else 2048
+    ap = parser(__doc__)
+    ap.add_argument("points", type=path, help="the CSV of probes/engine_view_points")
+    ap.add_argument("glb", type=path, help="the GLB of the same bake")
+    ap.add_argument("rays", nargs="?", type=int, default=2048, help="reference rays a point (default 2048)")
+    args = ap.parse_args()
+    csv, glb, rays = args.points, args.glb, args.rays
     d = np.genfromtxt(csv, delimiter=",", names=True)
     X = np.c_[d["x"], d["y"], d["z"]]
     N = np.c_[d["nx"], d["ny"], d["nz"]]

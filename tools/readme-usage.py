@@ -7,10 +7,14 @@ tests/cli.rs checks.
 """
 import re
 import subprocess
-import sys
 from pathlib import Path
 
-binary = sys.argv[1] if len(sys.argv) > 1 else "target/debug/aobake"
+from toolargs import parser, path
+
+ap = parser(__doc__)
+ap.add_argument("binary", nargs="?", default="target/debug/aobake", type=path,
+                help="the aobake to run (default: target/debug/aobake)")
+binary = ap.parse_args().binary
 root = Path(__file__).resolve().parent.parent
 
 

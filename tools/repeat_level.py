@@ -8,10 +8,16 @@ Each copy is the scene's root nodes (with their subtrees duplicated, the
 meshes shared) under a parent translated on a grid of ceil(sqrt(N))
 columns, spaced 1.2x the scene's largest extent (from the POSITION
 accessors' min/max, transforms ignored). Buffers are unchanged."""
-import json, math, struct, sys
+import json, math, struct
 
-src, dst = sys.argv[1], sys.argv[2]
-n = int(sys.argv[3]) if len(sys.argv) > 3 else 16
+from toolargs import parser, path
+
+ap = parser(__doc__)
+ap.add_argument('input', type=path, help='the scene to copy')
+ap.add_argument('output', type=path, help='the level to write')
+ap.add_argument('n', nargs='?', type=int, default=16, help='how many copies (default 16)')
+args = ap.parse_args()
+src, dst, n = args.input, args.output, args.n
 data = open(src, 'rb').read()
 magic, version, length = struct.unpack_from('<III', data, 0)
 assert magic == 0x46546C67, 'not a GLB'

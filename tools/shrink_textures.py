@@ -13,10 +13,10 @@ small. Normal maps keep more (--normal-size): the importers' browser tests
 check that they move the relit light. Needs Pillow (the checker's
 environment has it).
 """
-import argparse
 import io
 
 from glb import read_glb, write_glb
+from toolargs import parser, path
 from PIL import Image
 
 
@@ -36,9 +36,9 @@ def shrink(blob, mime, size):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("input")
-    ap.add_argument("output")
+    ap = parser(__doc__)
+    ap.add_argument("input", type=path)
+    ap.add_argument("output", type=path)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--normal-size", type=int, default=512)
     args = ap.parse_args()

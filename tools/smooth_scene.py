@@ -10,7 +10,8 @@ border fit (docs/measurements/engine-view-levers.md). No dependencies beyond the
 import json
 import math
 import struct
-import sys
+
+from toolargs import parser, path
 
 
 def sphere(cx, cy, cz, r, nu=48, nv=24):
@@ -114,4 +115,6 @@ def main(out):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    ap = parser(__doc__)
+    ap.add_argument("output", type=path, help="the GLB to write")
+    main(ap.parse_args().output)

@@ -27,9 +27,9 @@ No dependencies beyond the standard library.
 import math
 import os
 import struct
-import sys
 
 from glb import write_glb
+from toolargs import parser, path
 
 
 class Mesh:
@@ -356,7 +356,10 @@ def gpu_instancing(path):
 
 
 def main():
-    out = sys.argv[1] if len(sys.argv) > 1 else "assets/generated"
+    ap = parser(__doc__)
+    ap.add_argument("out_dir", nargs="?", default="assets/generated", type=path,
+                    help="the folder to write them in (default: assets/generated)")
+    out = ap.parse_args().out_dir
     os.makedirs(out, exist_ok=True)
     courtyard(os.path.join(out, "courtyard.glb"))
     cad_instances(os.path.join(out, "cad_instances.glb"))

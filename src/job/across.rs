@@ -416,7 +416,7 @@ mod tests {
     }
 
     fn lookup(ao: &[f32], uv: [f32; 2]) -> f32 {
-        crate::lightmap::seams::metric::taps(uv, 16, 16)
+        crate::lightmap::filter::bilinear_taps(uv, 16, 16)
             .iter()
             .map(|&(t, w)| w * ao[t as usize])
             .sum()

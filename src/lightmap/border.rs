@@ -44,8 +44,8 @@
 //! [`interior`]: super::seams::interior
 //! [`surface_triangles`]: crate::atlas::rasterize::surface_triangles
 
+use super::filter::bilinear_taps as taps;
 use super::seams::Anchor;
-use super::seams::metric::taps;
 use crate::atlas::Receivers;
 use crate::atlas::rasterize::{SurfaceTri, closest_point_barycentric, inside};
 use crate::bake::{BakeParams, mc, validity, visibility};

@@ -57,6 +57,25 @@ impl IntoIterator for Taps {
     }
 }
 
+/// The four texels and weights of a bilinear lookup at `uv` (glTF
+/// conventions, clamp to edge).
+#[inline]
+pub fn bilinear_taps(uv: [f32; 2], width: u32, height: u32) -> [(u32, f32); 4] {
+    let x = uv[0] * width as f32 - 0.5;
+    let y = uv[1] * height as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let clamp = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1);
+    let (xa, xb) = (clamp(x0, width), clamp(x0 + 1.0, width));
+    let (ya, yb) = (clamp(y0, height), clamp(y0 + 1.0, height));
+    [
+        (ya * width + xa, (1.0 - fx) * (1.0 - fy)),
+        (ya * width + xb, fx * (1.0 - fy)),
+        (yb * width + xa, (1.0 - fx) * fy),
+        (yb * width + xb, fx * fy),
+    ]
+}
+
 /// The uniform cubic B-spline's four weights at fraction `t` in [0, 1)
 /// past the second tap's centre (they sum to 1; at t = 0: 1/6, 4/6, 1/6, 0).
 #[inline]
@@ -82,10 +101,7 @@ impl Filter {
         };
         match self {
             Filter::Bilinear => {
-                for (k, tap) in super::seams::metric::taps(uv, width, height)
-                    .into_iter()
-                    .enumerate()
-                {
+                for (k, tap) in bilinear_taps(uv, width, height).into_iter().enumerate() {
                     out.taps[k] = tap;
                 }
                 out.len = 4;
@@ -162,6 +178,22 @@ impl Filter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn taps_follow_the_gltf_texel_centres() {
+        // The centre of texel (1, 2) of a 4 x 4 page: all weight on it.
+        let t = bilinear_taps([1.5 / 4.0, 2.5 / 4.0], 4, 4);
+        let on: f32 = t.iter().filter(|(i, _)| *i == 2 * 4 + 1).map(|x| x.1).sum();
+        assert!((on - 1.0).abs() < 1e-6, "{t:?}");
+        // Half-way between texels 0 and 1 of row 0, on the row's centre.
+        let t = bilinear_taps([1.0 / 4.0, 0.5 / 4.0], 4, 4);
+        let w = |i: u32| t.iter().filter(|x| x.0 == i).map(|x| x.1).sum::<f32>();
+        assert!((w(0) - 0.5).abs() < 1e-6 && (w(1) - 0.5).abs() < 1e-6);
+        // Outside the page: clamped to the edge texel.
+        let t = bilinear_taps([-0.3, 1.2], 4, 4);
+        assert!(t.iter().all(|x| x.0 == 12 || x.1 == 0.0), "{t:?}");
+        assert!((t.iter().map(|x| x.1).sum::<f32>() - 1.0).abs() < 1e-6);
+    }
 
     #[test]
     fn bspline_weights_are_the_closed_form() {

@@ -45,7 +45,7 @@ use crate::sh::{SH_COUNT, VIS_COUNT};
 use crate::stage::StageTimer;
 use crate::trace::Tracer;
 pub use border::BorderMode;
-pub use filter::Filter;
+pub use filter::{Filter, bilinear_taps};
 use rayon::prelude::*;
 use seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode, SeamReport};
 use serde::Serialize;

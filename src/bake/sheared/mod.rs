@@ -11,7 +11,9 @@
 //! | `mod.rs` | [`bake`]: both passes, timed | Section 5 |
 //! | `types.rs` | what goes in and out: [`ShearedOptions`], [`Samples`], [`ShearedStats`] | |
 //! | `passes` | the sparse pass, the filter pass over all receivers | Algorithm 1's outer loop |
-//! | `receiver` | one receiver: gather, depth bounds, marks, filter, brute force | Algorithm 1, lines 1-33 |
+//! | `receiver` | one receiver's state: scratch, marks, pending cells, result | |
+//! | `gather` | one receiver: gather, depth bounds, marks, filter | Algorithm 1, lines 1-33 |
+//! | `second_pass` | one receiver: brute force over the marked cells, AO and SH | Algorithm 1, line 33; Section 5 |
 //! | `geometry` | per-pair math: leak rule, Eq. 8, Eq. 9, Figure 6, weights, Jacobian | Eqs. 8-9, Figure 6 |
 //! | `order` | receivers in Morton order of their texels, and back | (locality, ours) |
 //!
@@ -80,16 +82,19 @@
 //!   Cornell box 512 at 16:8: bias -0.0018 -> +0.0001, RMSE 0.0065 ->
 //!   0.0056).
 
+mod gather;
 mod geometry;
 mod order;
 mod passes;
 mod receiver;
+mod second_pass;
 mod types;
 
 pub use geometry::*;
 pub use order::{locality_order, unpermuted};
 pub use passes::{filter_pass, sparse_pass, sparse_t_max};
-pub use receiver::{MIN_CELL_SAMPLES, MIN_DEPTH_HITS, cell_estimates};
+pub use receiver::{MIN_CELL_SAMPLES, MIN_DEPTH_HITS};
+pub use second_pass::cell_estimates;
 pub use types::{MAX_FILTER_RAYS, MAX_GATHER_RADIUS, Samples, ShearedOptions, ShearedStats};
 
 use super::{Bake, BakeParams};

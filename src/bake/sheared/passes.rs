@@ -5,9 +5,9 @@
 //! In: [`Receivers`] in locality order, a [`Tracer`], [`ShearedOptions`],
 //! [`BakeParams`]. Out: [`Samples`], then a [`Bake`] and [`ShearedStats`].
 
-use super::receiver::{
-    Pass, Pending, ReceiverResult, Scratch, emit_brute_force, filter_receiver, finish,
-};
+use super::gather::filter_receiver;
+use super::receiver::{Pass, Pending, ReceiverResult, Scratch};
+use super::second_pass::{emit_brute_force, finish};
 use super::types::{SPARSE_STREAM, Samples, ShearedOptions, ShearedStats};
 use crate::atlas::Receivers;
 use crate::bake::{Bake, BakeParams, ReceiverRays};

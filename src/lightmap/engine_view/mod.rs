@@ -40,7 +40,7 @@ use relight::{environments, relight_error};
 
 use super::Lightmap;
 use super::filter::Filter;
-use super::seams::metric::taps;
+use super::filter::bilinear_taps as taps;
 
 /// Surface points of a page, uniform by world area: each a receiver (for
 /// the reference) with its lightmap UV.

@@ -15,10 +15,10 @@
 //! bit for bit, in one process or in two shards.
 
 use super::find::CrossSeam;
-use super::metric::taps;
 use super::solve::{Anchor, POINTS_PER_TEXEL};
 use crate::atlas::{PageSize, Receivers};
 use crate::bake::{BakeParams, mc, visibility};
+use crate::lightmap::filter::bilinear_taps as taps;
 use crate::sh::{SH_COUNT, VIS_COUNT};
 use crate::trace::Tracer;
 

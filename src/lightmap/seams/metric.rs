@@ -15,25 +15,6 @@ use crate::sh::SH_COUNT;
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// The four texels and weights of a bilinear lookup at `uv` (glTF
-/// conventions, clamp to edge).
-#[inline]
-pub fn taps(uv: [f32; 2], width: u32, height: u32) -> [(u32, f32); 4] {
-    let x = uv[0] * width as f32 - 0.5;
-    let y = uv[1] * height as f32 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let clamp = |v: f32, n: u32| (v.max(0.0) as u32).min(n - 1);
-    let (xa, xb) = (clamp(x0, width), clamp(x0 + 1.0, width));
-    let (ya, yb) = (clamp(y0, height), clamp(y0 + 1.0, height));
-    [
-        (ya * width + xa, (1.0 - fx) * (1.0 - fy)),
-        (ya * width + xb, fx * (1.0 - fy)),
-        (yb * width + xa, (1.0 - fx) * fy),
-        (yb * width + xb, fx * fy),
-    ]
-}
-
 /// Sample parameters along a seam: `per_texel` per texel of its longer
 /// side's UV length, at least three, at the centres of equal parts.
 pub fn samples(seam: &Seam, width: u32, height: u32, per_texel: f32) -> impl Iterator<Item = f32> {
@@ -168,22 +149,6 @@ pub(crate) fn summarise(points: &[SeamPoint]) -> SeamFigures {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn taps_follow_the_gltf_texel_centres() {
-        // The centre of texel (1, 2) of a 4 x 4 page: all weight on it.
-        let t = taps([1.5 / 4.0, 2.5 / 4.0], 4, 4);
-        let on: f32 = t.iter().filter(|(i, _)| *i == 2 * 4 + 1).map(|x| x.1).sum();
-        assert!((on - 1.0).abs() < 1e-6, "{t:?}");
-        // Half-way between texels 0 and 1 of row 0, on the row's centre.
-        let t = taps([1.0 / 4.0, 0.5 / 4.0], 4, 4);
-        let w = |i: u32| t.iter().filter(|x| x.0 == i).map(|x| x.1).sum::<f32>();
-        assert!((w(0) - 0.5).abs() < 1e-6 && (w(1) - 0.5).abs() < 1e-6);
-        // Outside the page: clamped to the edge texel.
-        let t = taps([-0.3, 1.2], 4, 4);
-        assert!(t.iter().all(|x| x.0 == 12 || x.1 == 0.0), "{t:?}");
-        assert!((t.iter().map(|x| x.1).sum::<f32>() - 1.0).abs() < 1e-6);
-    }
 
     #[test]
     fn a_constant_image_has_no_jump_and_a_step_has_its_height() {

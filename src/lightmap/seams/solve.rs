@@ -479,7 +479,7 @@ mod tests {
             values[*t as usize] = v;
         }
         let lookup = |uv: [f32; 2]| {
-            super::super::metric::taps(uv, w, h)
+            crate::lightmap::filter::bilinear_taps(uv, w, h)
                 .iter()
                 .map(|&(t, wt)| wt * values[t as usize])
                 .sum::<f32>()
