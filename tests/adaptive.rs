@@ -285,3 +285,24 @@ fn scale_1e_minus_4_and_1e4_give_the_same_bake() {
         assert!(b.bake.sh.iter().flatten().all(|v| v.is_finite()));
     }
 }
+
+/// A cheaper bake casts no more border-fit rays: the noise of a lower
+/// `--quality` crosses more cells' step span, so the spans grow with it
+/// (`border::step_span`). The Cornell box at 256, qualities 256, 64, 16:
+/// the fit's rays per texel never rise as the quality drops, and at 16
+/// they are fewer than at 256.
+#[test]
+fn the_border_fit_costs_no_more_as_the_quality_drops() {
+    let sc = bundled_scene("cornell_box.glb");
+    let rays_per_texel = |quality: u32| {
+        let mut s = adaptive(256, 0, None);
+        s.adaptive.quality = quality;
+        let b = aobake::bake_scene(&sc, &s).unwrap();
+        let border = b.report.border.expect("the fit traced points");
+        border.rays as f64 / b.report.texels as f64
+    };
+    let r: Vec<f64> = [256, 64, 16].into_iter().map(rays_per_texel).collect();
+    eprintln!("fit rays per texel at quality 256, 64, 16: {r:?}");
+    assert!(r[1] <= r[0] && r[2] <= r[1], "{r:?}");
+    assert!(r[2] < r[0], "{r:?}");
+}

@@ -14,7 +14,9 @@
 
 use aobake::atlas::rasterize::{SurfaceTri, closest_point_barycentric, inside};
 use aobake::lightmap::bilinear_taps as taps;
-use aobake::lightmap::border::{FIT_WEIGHT, SEAM_SCALE, STEP, points, step_span, step_texels};
+use aobake::lightmap::border::{
+    FIT_WEIGHT, SEAM_SCALE, STEP, fitted_taps, flat_span, points, step_span, step_texels,
+};
 use aobake::lightmap::seams::{Anchor, Seam, band, stitch_page};
 use aobake::sh::{K0, SH_COUNT};
 use glam::{Vec2, Vec3};
@@ -607,4 +609,63 @@ fn step_optimum(pts: &[Vec2]) -> f32 {
         }
     }
     best as f32
+}
+
+/// The plate baked without noise from `f` (each texel holds f at the
+/// plate's point nearest its centre, covered within half a diagonal), and
+/// every covered texel free, as the border band and step cells make them
+/// in a page whose chart is this narrow.
+fn plate_baked(f: impl Fn(Vec2) -> f32) -> (Vec<f32>, Vec<bool>) {
+    let (w, h) = (28u32, 20u32);
+    let nearest = |c: Vec2| c.clamp(Vec2::new(4.2, 3.6), Vec2::new(24.2, 15.6));
+    let centre = |t: u32| Vec2::new((t % w) as f32 + 0.5, (t / w) as f32 + 0.5);
+    let ao = (0..w * h).map(|t| f(nearest(centre(t)))).collect();
+    let covered = (0..w * h)
+        .map(|t| centre(t).distance(nearest(centre(t))) <= std::f32::consts::FRAC_1_SQRT_2)
+        .collect();
+    (ao, covered)
+}
+
+#[test]
+fn fit_points_leave_flat_cells_out_and_keep_steps_and_slopes() {
+    let (w, h) = (28u32, 20u32);
+    // The spans: half a step's; a cheaper bake's noise raises both, so it
+    // fits no more cells (four standard errors of 0.5 / sqrt(rays)).
+    assert_eq!(flat_span(None), 0.5 * STEP);
+    assert!((flat_span(Some(256)) - 0.5 * 2.0 / 16.0).abs() < 1e-6);
+    assert!((flat_span(Some(16)) - 0.5 * 2.0 / 4.0).abs() < 1e-6);
+    assert!((step_span(Some(64)) - 0.25).abs() < 1e-6);
+    let span = flat_span(None);
+    // The step: only the taps of its cells (columns 12 and 13) and of the
+    // cells beside them (11 and 14, which share a tap with a step cell)
+    // get points; the flat rest of the plate none.
+    let (ao, covered) = plate_baked(|p| f_step(p.extend(0.0)));
+    let fitted = fitted_taps(&ao, &covered, &covered, w, h, span);
+    for (t, &f) in fitted.iter().enumerate() {
+        let x = t as u32 % w;
+        if f {
+            assert!((12..=13).contains(&x), "texel {t} (column {x}) fitted");
+        }
+    }
+    let rows = (4..=15).filter(|&y| fitted[(y * w + 12) as usize]).count();
+    assert_eq!(rows, 12, "the step's column on every covered row");
+    // A ramp along u: a cell's taps span its slope per texel where both
+    // centres lie on the plate (columns 4 to 23), less where one is a
+    // gutter texel holding the edge's value (columns 3 and 24: 0.3 and 0.7
+    // of a texel from the edge). Steeper than the flat span, every covered
+    // texel of columns 4 to 23 is fitted (where the reconstruction's
+    // slope error is larger than the fit's noise) and no other; gentler,
+    // none.
+    for (slope, steep) in [(1.2 * span, true), (0.8 * span, false)] {
+        let (ao, covered) = plate_baked(|p| 0.2 + slope * p.x);
+        let fitted = fitted_taps(&ao, &covered, &covered, w, h, span);
+        for t in 0..(w * h) as usize {
+            let x = t as u32 % w;
+            let expected = steep && covered[t] && (4..=23).contains(&x);
+            assert_eq!(fitted[t], expected, "slope {slope}, texel {t}");
+        }
+    }
+    // Only free texels are fitted.
+    let none = vec![false; (w * h) as usize];
+    assert!(!fitted_taps(&ao, &covered, &none, w, h, span).contains(&true));
 }

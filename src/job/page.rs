@@ -241,7 +241,7 @@ impl Page<'_> {
                 seed: s.seed,
                 diagonal: level.geometry.space.diagonal,
                 fit_cache: Some(&self.fit_cache),
-                noise_rays: (s.method == Method::Mc).then_some(s.rays),
+                noise_rays: s.noise_rays(),
                 sigma_texels: passes.adaptive_stats.as_ref().map(|a| &a.sigma_texels[..]),
             },
             s.seams,

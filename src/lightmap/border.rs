@@ -34,6 +34,15 @@
 //! a cell's four taps spans more than [`STEP`] ([`step_texels`]): the
 //! contact lines, a small share of the page.
 //!
+//! Where the band's values are flat the same holds: the texels held at
+//! their chart's edge points are already what a lookup should read, and
+//! fit points there buy nothing but their noise (a point's 64 rays carry
+//! an AO error of about 0.05, a texel's ~16 points about 0.0125; the
+//! reconstruction's error in a flat cell is smaller). So points go only
+//! into cells with a free tap that belongs to a cell spanning more than
+//! [`flat_span`] ([`fitted_taps`]): Sponza's band points fall by a quarter
+//! for the same engine view (`docs/measurements/border-fit-cost.md`).
+//!
 //! Points inside geometry (the contract's rule, [`validity`]) are left
 //! out: no camera sees them and their traced value is black. A triangle
 //! too small to hold a grid point in a cell with a free tap gets one at
@@ -90,17 +99,44 @@ pub enum BorderMode {
     Off,
 }
 
-/// The least span of a step cell for a page whose values carry Monte
-/// Carlo noise of `noise_rays` rays per receiver (unfiltered `--method
-/// mc`; `None`: filtered, [`STEP`]): four standard errors of a binary
-/// estimate at its widest (0.5 / sqrt(rays)), so that noise alone spans it
-/// rarely, and never less than [`STEP`]. At 4 rays nothing is a step; at
-/// 400 and more, STEP.
+/// The least span of a step cell for a page whose values carry the noise
+/// of `noise_rays`-ray Monte Carlo (`--method mc`'s rays, the adaptive
+/// method's `--quality`, whose error it promises; `None`: the sheared
+/// filter, [`STEP`]): four standard errors of a binary estimate at its
+/// widest (0.5 / sqrt(rays)), so that noise alone spans it rarely, and
+/// never less than [`STEP`]. At 4 rays nothing is a step; at 400 and more,
+/// STEP. So a cheaper bake, whose noise crosses more cells, does not fit
+/// more of them.
 pub fn step_span(noise_rays: Option<u32>) -> f32 {
     match noise_rays {
         None => STEP,
         Some(n) => STEP.max(2.0 / (n.max(1) as f32).sqrt()),
     }
+}
+
+/// The span under which a cell is flat for the fit's points: half a
+/// step's ([`step_span`]). Measured on Sponza 1024 (engine view, 60,000
+/// points): band points only where a cell spans more than 0.05, 0.1, or
+/// none left out: border error 0.0324, 0.0328, 0.0325, for 0.81x, 0.74x,
+/// 1x the points.
+pub fn flat_span(noise_rays: Option<u32>) -> f32 {
+    0.5 * step_span(noise_rays)
+}
+
+/// The free taps whose cells get fit points: `free` texels that are a tap
+/// of a cell (with a covered tap) whose baked AO spans more than `span`
+/// ([`flat_span`]). A cell gets points when one of its taps is such a
+/// texel, so a varied cell's neighbours are fitted too.
+pub fn fitted_taps(
+    ao: &[f32],
+    covered: &[bool],
+    free: &[bool],
+    width: u32,
+    height: u32,
+    span: f32,
+) -> Vec<bool> {
+    let varied = step_texels(ao, covered, width, height, span);
+    free.iter().zip(varied).map(|(&f, v)| f && v).collect()
 }
 
 /// The taps of every bilinear cell of a `width` x `height` page that
@@ -156,7 +192,10 @@ pub fn step_texels(ao: &[f32], covered: &[bool], width: u32, height: u32, span: 
 #[derive(Debug, Default)]
 pub struct FitTargets {
     pub layer: bool,
+    /// The texels the solve moves.
     pub free: Vec<bool>,
+    /// The free texels whose cells hold the points ([`fitted_taps`]).
+    pub fitted: Vec<bool>,
     pub anchors: Vec<Anchor>,
     /// Rays cast for them.
     pub rays: u64,

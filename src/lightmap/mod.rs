@@ -124,9 +124,10 @@ pub struct PageBake<'a> {
     pub sigma_texels: Option<&'a [f32]>,
     /// The page's traced border fit from an earlier run, if any.
     pub fit_cache: Option<&'a border::FitCache>,
-    /// Rays per receiver where its values are unfiltered Monte Carlo
-    /// (`--method mc`), whose noise a step cell must stand out from
-    /// ([`border::step_span`]); `None` for the filtering methods.
+    /// The Monte Carlo ray count whose noise the page's values carry
+    /// (`--method mc`'s rays; the adaptive method's `--quality`, the error
+    /// it promises), which a step cell must stand out from
+    /// ([`border::step_span`]); `None` for the sheared filter.
     pub noise_rays: Option<u32>,
 }
 
@@ -210,33 +211,39 @@ pub fn build(
         Filter::Bilinear => fit_at.clone(),
         Filter::Bicubic => seams::reach(&lightmap.covered, w, h, filter.reach()),
     };
-    // The border fit's points, traced (once per page and free texels).
+    // The border fit's points, traced (once per page, free texels and
+    // fitted taps).
     let fit: Option<std::sync::Arc<border::FitTargets>> = match border_mode {
         BorderMode::Off => None,
         BorderMode::Fit | BorderMode::Band => {
             let layer = lightmap.visibility.is_some();
-            let trace = |free: Vec<bool>| {
+            let span = border::flat_span(p.noise_rays);
+            let fitted = border::fitted_taps(&lightmap.ao, &lightmap.covered, &fit_at, w, h, span);
+            let trace = |free: Vec<bool>, fitted: Vec<bool>| {
                 let tris = surface_triangles(p.meshes, p.atlas);
                 let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
                 let (tracer, d) = (p.tracer, p.max_distance);
                 let inside = r.centers_inside();
                 let (anchors, rays) =
-                    border::anchors(&tris, w, h, &free, &inside, tracer, d, seed, layer);
+                    border::anchors(&tris, w, h, &fitted, &inside, tracer, d, seed, layer);
                 std::sync::Arc::new(border::FitTargets {
                     layer,
                     free,
+                    fitted,
                     anchors,
                     rays,
                 })
             };
             let fit = match p.fit_cache {
-                None => trace(fit_at.clone()),
+                None => trace(fit_at.clone(), fitted),
                 Some(cache) => {
                     let mut kept = cache.lock().unwrap_or_else(|e| e.into_inner());
                     match &*kept {
-                        Some(t) if t.layer == layer && t.free == fit_at => t.clone(),
+                        Some(t) if t.layer == layer && t.free == fit_at && t.fitted == fitted => {
+                            t.clone()
+                        }
                         _ => {
-                            let t = trace(fit_at.clone());
+                            let t = trace(fit_at.clone(), fitted);
                             *kept = Some(t.clone());
                             t
                         }
