@@ -210,7 +210,8 @@ fn use_tree(s: &str) -> (Vec<(Vec<String>, String)>, usize) {
             .find(|c: char| !(c.is_alphanumeric() || c == '_'))
             .unwrap_or(a.len());
         alias = a[..len].to_string();
-        i += (after.len() - trimmed.len()) + 3 + (trimmed.len() - 3 - a.len()) + len;
+        // `a` is a suffix of `after`: the alias ends `len` past its start.
+        i += after.len() - a.len() + len;
     }
     (vec![(vec![name], alias)], i)
 }

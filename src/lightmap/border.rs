@@ -40,7 +40,7 @@
 //! an AO error of about 0.05, a texel's ~16 points about 0.0125; the
 //! reconstruction's error in a flat cell is smaller). So points go only
 //! into cells with a free tap that belongs to a cell spanning more than
-//! [`flat_span`] ([`fitted_taps`]): Sponza's band points fall by a quarter
+//! [`flat_span`] ([`fitted_taps`]): Sponza's band points fall by a fifth
 //! for the same engine view (`docs/measurements/border-fit-cost.md`).
 //!
 //! Points inside geometry (the contract's rule, [`validity`]) are left
@@ -100,9 +100,9 @@ pub enum BorderMode {
 }
 
 /// The least span of a step cell for a page whose values carry the noise
-/// of `noise_rays`-ray Monte Carlo (`--method mc`'s rays, the adaptive
-/// method's `--quality`, whose error it promises; `None`: the sheared
-/// filter, [`STEP`]): four standard errors of a binary estimate at its
+/// of `noise_rays`-ray Monte Carlo (as
+/// [`crate::job::settings::BakeSettings::noise_rays`] counts it for each
+/// method; `None`: the sheared filter, [`STEP`]): four standard errors of a binary estimate at its
 /// widest (0.5 / sqrt(rays)), so that noise alone spans it rarely, and
 /// never less than [`STEP`]. At 4 rays nothing is a step; at 400 and more,
 /// STEP. So a cheaper bake, whose noise crosses more cells, does not fit

@@ -125,9 +125,9 @@ pub struct PageBake<'a> {
     /// The page's traced border fit from an earlier run, if any.
     pub fit_cache: Option<&'a border::FitCache>,
     /// The Monte Carlo ray count whose noise the page's values carry
-    /// (`--method mc`'s rays; the adaptive method's `--quality`, the error
-    /// it promises), which a step cell must stand out from
-    /// ([`border::step_span`]); `None` for the sheared filter.
+    /// ([`crate::job::settings::BakeSettings::noise_rays`]), which a step
+    /// cell must stand out from ([`border::step_span`]); `None` for the
+    /// sheared filter.
     pub noise_rays: Option<u32>,
 }
 
