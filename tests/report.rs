@@ -9,6 +9,13 @@ use common::*;
 use serde_json::Value;
 use std::path::Path;
 
+/// The seconds of `stage` in a JSON list of stage times (0 if absent).
+fn seconds_of_stage(stages: &Value, stage: &str) -> f64 {
+    (stages.as_array().unwrap().iter())
+        .find(|s| s["stage"] == stage)
+        .map_or(0.0, |s| s["seconds"].as_f64().unwrap())
+}
+
 fn small(budgets: &str, reference_rays: u32, stability_rays: u32) -> ReportSettings {
     ReportSettings {
         resolution: 48,
@@ -171,6 +178,47 @@ fn cli_writes_every_file_and_refuses_bad_budgets() {
             > 0
     );
     assert!(out.join("engine_view_vs_time.png").exists());
+    // Each run pays its own output stages (border fit, seams, encode): its
+    // end-to-end time is the shared stages, its passes and them, and the
+    // equal-error comparison is made on the engine view too, its target
+    // 256-ray Monte Carlo's engine-view error.
+    let shared = json["shared_seconds"].as_f64().unwrap();
+    for run in json["runs"].as_array().unwrap() {
+        let (bake, output) = (
+            run["bake_seconds"].as_f64().unwrap(),
+            run["output_seconds"].as_f64().unwrap(),
+        );
+        assert!(output > 0.0, "{run}");
+        let sum = shared + bake + output
+            - if run["method"] == "adaptive" {
+                seconds_of_stage(&json["shared_stages"], "validity")
+            } else {
+                0.0
+            };
+        assert!(
+            (run["end_to_end_seconds"].as_f64().unwrap() - sum).abs() < 1e-9,
+            "{run}"
+        );
+        let stages: Vec<&str> = (run["passes"].as_array().unwrap().iter())
+            .map(|s| s["stage"].as_str().unwrap())
+            .collect();
+        assert!(
+            stages.contains(&"seams") && stages.contains(&"encode"),
+            "{stages:?}"
+        );
+    }
+    let mc256 = json["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["label"] == "mc:256")
+        .unwrap();
+    assert_eq!(
+        json["equal_engine_view"]["target_ao_rmse"],
+        mc256["engine_view"]["all"]["ao_rmse"]
+    );
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("**Equal engine-view error**"), "{md}");
     for f in json["files"].as_array().unwrap() {
         assert!(out.join(f.as_str().unwrap()).exists(), "{f}");
     }

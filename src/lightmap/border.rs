@@ -71,6 +71,14 @@ pub const GRID: u32 = 2;
 /// Rays of each fitted point's target.
 pub const FIT_RAYS: u32 = 64;
 
+/// Uniform rays of each fitted point's visibility layer: as the adaptive
+/// bake gives its receivers, half the cosine-weighted count
+/// ([`crate::bake::adaptive::visibility_rays`]). Measured on the flight
+/// helmet at 1024 against 64: border points stage 0.84x, relight error
+/// interior / border 1.018x / 1.021x, engine-view AO and SH unchanged
+/// (`docs/measurements/border-fit-cost.md`).
+pub const FIT_VISIBILITY_RAYS: u32 = FIT_RAYS / crate::bake::adaptive::VISIBILITY_RAY_DIVISOR;
+
 /// A fitted point's row weight relative to a seam row's (seams-only):
 /// the fit has ~4 rows per texel of the border band against each texel's
 /// data term of 1.
@@ -339,10 +347,11 @@ const SLIVER_SEED: u64 = 0x51f1_7e55;
 pub const SEAM_SCALE: f64 = 2.0;
 
 /// The anchors of a page's border band: [`points`] on `tris` traced with
-/// [`FIT_RAYS`] rays (AO, SH, and with `layer` the visibility layer's
-/// coefficients after them), inside-geometry points left out. `seed`: the
-/// page's own (its points and rays depend on nothing else). Returns the
-/// anchors and the rays cast (the inside test's not counted).
+/// [`FIT_RAYS`] rays (AO, SH), and with `layer` [`FIT_VISIBILITY_RAYS`]
+/// for the visibility layer's coefficients after them, inside-geometry
+/// points left out. `seed`: the page's own (its points and rays depend on
+/// nothing else). Returns the anchors and the rays cast, the layer's
+/// included (the inside test's not counted).
 #[allow(clippy::too_many_arguments)]
 pub fn anchors(
     tris: &[SurfaceTri],
@@ -372,7 +381,7 @@ pub fn anchors(
     let (w, h) = (width as f32, height as f32);
     let uv = |p: &FitPoint| [p.uv.x / w, p.uv.y / h];
     let bake = mc::bake(&r, tracer, FIT_RAYS, &params, &|_| {});
-    let v = layer.then(|| visibility::bake(&r, tracer, FIT_RAYS, &params).v);
+    let v = layer.then(|| visibility::bake(&r, tracer, FIT_VISIBILITY_RAYS, &params));
     let anchors = points
         .iter()
         .enumerate()
@@ -382,7 +391,7 @@ pub fn anchors(
             target.push(bake.ao[k]);
             target.extend_from_slice(&bake.sh[k]);
             if let Some(v) = &v {
-                target.extend_from_slice(&v[k]);
+                target.extend_from_slice(&v.v[k]);
             }
             Anchor {
                 uv: uv(p),
@@ -391,7 +400,7 @@ pub fn anchors(
             }
         })
         .collect();
-    (anchors, bake.rays)
+    (anchors, bake.rays + v.map_or(0, |v| v.rays))
 }
 
 #[cfg(test)]

@@ -102,7 +102,10 @@ pub struct RunFigures {
     /// Wall time of each of the run's own passes.
     pub passes: Vec<StageTime>,
     pub bake_seconds: f64,
-    /// Shared stages plus this run's passes.
+    /// This run's output stages (border fit, seams, dilate, encode), whose
+    /// stages follow its passes' in `passes`.
+    pub output_seconds: f64,
+    /// Shared stages plus this run's passes and output stages.
     pub end_to_end_seconds: f64,
     pub rays_cast: u64,
     pub rays_per_texel: f64,
@@ -189,15 +192,19 @@ pub struct SweepReport {
     pub reference_rays: u32,
     pub reference_seed: u64,
     pub reference_seconds: f64,
-    /// Stages every run shares (load, unwrap, rasterize, BVH, dilate,
-    /// encode, write), measured once.
+    /// Stages every run shares (load, unwrap, rasterize, BVH, validity,
+    /// the write of the reference's file), measured once.
     pub shared_stages: Vec<StageTime>,
     pub shared_seconds: f64,
     pub runs: Vec<RunFigures>,
     pub equal_error: Option<EqualError>,
+    /// The same comparison on the engine view's AO RMSE over all surface
+    /// points (with `--engine-view-points`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub equal_engine_view: Option<EqualError>,
     pub stability: Vec<StabilityRow>,
     /// The reference bake's smooth seams before and after stitching (the
-    /// output stages' `seams`, counted in the shared seconds).
+    /// output stages' `seams`; each run times its own).
     pub reference_seams: Option<crate::lightmap::seams::SeamReport>,
     /// Files written next to report.json.
     pub files: Vec<String>,

@@ -173,12 +173,17 @@ fn method_curves(
 
 /// The engine-view plot: each run's AO RMSE over the surface points (the
 /// written textures read bilinearly) against end-to-end time, with 256-ray
-/// Monte Carlo's as the dashed level; `None` without engine-view figures.
+/// Monte Carlo's as the dashed level and where each method reaches it
+/// crossed (the report's `equal_engine_view`), so the time ratio at equal
+/// engine-view error reads from the chart; `None` without engine-view
+/// figures.
 pub fn engine_view_vs_time(r: &SweepReport) -> Option<Plot> {
     let first = r.runs.iter().find_map(|x| x.engine_view)?;
     let mc = (r.runs.iter())
         .find(|x| x.method == Method::Mc && x.default_settings)
         .and_then(|x| x.engine_view);
+    let e = r.equal_engine_view.as_ref();
+    let at = |m: Method| e.and_then(|e| e.of(m)).and_then(|m| m.seconds);
     Some(Plot {
         title: format!(
             "{}: engine-view AO error vs end-to-end time ({} points)",
@@ -190,12 +195,31 @@ pub fn engine_view_vs_time(r: &SweepReport) -> Option<Plot> {
             "AO RMSE at surface points, bilinear, vs {}-ray reference (log)",
             first.reference_rays
         ),
-        curves: method_curves(r, |x| x.engine_view.map(|e| e.all.ao_rmse), |_| None),
-        target: mc.map(|e| Target {
-            error: e.all.ao_rmse,
+        curves: method_curves(
+            r,
+            |x| x.engine_view.map(|e| e.all.ao_rmse),
+            |m| match m {
+                Method::Mc => e.and_then(|e| e.mc_seconds),
+                m => at(m),
+            },
+        ),
+        target: e.map(|e| Target {
+            error: e.target_ao_rmse,
             legend: format!(
-                "MC-{TARGET_RAYS} {:.4} (interior {:.4}, border {:.4})",
-                e.all.ao_rmse, e.interior.ao_rmse, e.border.ao_rmse
+                "MC-{TARGET_RAYS} {:.4}{}: {}",
+                e.target_ao_rmse,
+                mc.map_or(String::new(), |v| format!(
+                    " (interior {:.4}, border {:.4})",
+                    v.interior.ao_rmse, v.border.ao_rmse
+                )),
+                e.methods
+                    .iter()
+                    .map(|m| match m.speedup {
+                        Some(x) => format!("{} at {:.2}x its time", m.method.name(), 1.0 / x),
+                        None => format!("{} not reached", m.method.name()),
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         }),
     })

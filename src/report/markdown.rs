@@ -4,7 +4,7 @@
 //! equal-error sentence and the scale-stability table.
 
 use super::budget::TARGET_RAYS;
-use super::figures::SweepReport;
+use super::figures::{EqualError, SweepReport};
 use crate::stage::seconds_of;
 
 /// The report as a Markdown page.
@@ -147,27 +147,14 @@ pub fn markdown(r: &SweepReport) -> String {
     }
     if let Some(e) = &r.equal_error {
         line(String::new());
-        let fmt = |v: Option<f64>| v.map_or("not reached".to_string(), |v| format!("{v:.2} s"));
-        let methods: Vec<String> = e
-            .methods
-            .iter()
-            .map(|m| {
-                let name = m.method.name();
-                match m.speedup {
-                    Some(x) => format!("{name} {} ({x:.2}x as fast)", fmt(m.seconds)),
-                    None => format!(
-                        "{name} not reached (its best AO RMSE {})",
-                        m.best_ao_rmse.map_or("-".into(), |v| format!("{v:.4}"))
-                    ),
-                }
-            })
-            .collect();
-        line(format!(
-            "**Equal error** at {}-ray Monte Carlo's AO RMSE {:.4}: Monte Carlo {}; {}.",
-            TARGET_RAYS,
-            e.target_ao_rmse,
-            fmt(e.mc_seconds),
-            methods.join("; ")
+        line(equal_error_line("Equal error", "AO RMSE", e));
+    }
+    if let Some(e) = &r.equal_engine_view {
+        line(String::new());
+        line(equal_error_line(
+            "Equal engine-view error",
+            "engine-view AO RMSE (all points)",
+            e,
         ));
     }
     if !r.stability.is_empty() {
@@ -188,4 +175,34 @@ pub fn markdown(r: &SweepReport) -> String {
         }
     }
     s
+}
+
+/// One equal-error sentence: where Monte Carlo and each method reach
+/// 256-ray Monte Carlo's `what`, in end-to-end seconds, and the ratio.
+fn equal_error_line(title: &str, what: &str, e: &EqualError) -> String {
+    let fmt = |v: Option<f64>| v.map_or("not reached".to_string(), |v| format!("{v:.2} s"));
+    let methods: Vec<String> = e
+        .methods
+        .iter()
+        .map(|m| {
+            let name = m.method.name();
+            match m.speedup {
+                Some(x) => format!(
+                    "{name} {} ({:.2}x Monte Carlo's time, {x:.2}x as fast)",
+                    fmt(m.seconds),
+                    1.0 / x
+                ),
+                None => format!(
+                    "{name} not reached (its best {})",
+                    m.best_ao_rmse.map_or("-".into(), |v| format!("{v:.4}"))
+                ),
+            }
+        })
+        .collect();
+    format!(
+        "**{title}** at {TARGET_RAYS}-ray Monte Carlo's {what} {:.4}: Monte Carlo {}; {}.",
+        e.target_ao_rmse,
+        fmt(e.mc_seconds),
+        methods.join("; ")
+    )
 }

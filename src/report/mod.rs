@@ -16,8 +16,11 @@
 //! The scene is unwrapped, rasterized and its BVH built once (one
 //! [`Level`] and its [`Page`] 0, through the job's API); a high-ray Monte Carlo *reference* and every
 //! run of the sweep bake those same receivers, so errors compare texel by
-//! texel. A run's end-to-end time is the shared stages (measured once,
-//! including encode and write of the reference) plus its own passes.
+//! texel. A run's end-to-end time is the shared stages (measured once:
+//! load, unwrap, rasterize, BVH, the write of the reference's file) plus
+//! its own passes and its own output stages (border fit, seams, dilate,
+//! encode: their cost follows the run's noise and method, so each run
+//! pays its own), as a bake from the command line would.
 //! The reference uses a different seed from the runs, so a run is never
 //! correlated with it.
 
@@ -114,7 +117,8 @@ pub fn sweep(
     let mut ref_timer = StageTimer::new();
     let reference = prepared.bake(&ref_settings, &run, &mut ref_timer)?;
     let reference_seconds = ref_timer.total();
-    let out = prepared.finish(&reference, &ref_settings, &run, &mut timer)?;
+    // The reference's output stages are its own, not shared.
+    let out = prepared.finish(&reference, &ref_settings, &run, &mut StageTimer::new())?;
     crate::job::write(
         scene,
         &level,
@@ -163,15 +167,17 @@ pub fn sweep(
         let run_sh = picked(&passes.bake.sh, &compared);
         let sh_flat: Vec<f32> = run_sh.iter().flatten().copied().collect();
         let fs = passes.sheared_stats.as_ref();
-        // What the engine reads: the run's lightmap stage and encode (not
-        // timed: shared), looked up at the points.
+        // The run's output stages, timed into its end-to-end seconds; what
+        // the engine reads is their textures, looked up at the points.
+        let mut output_timer = StageTimer::new();
+        let out = prepared.finish(&passes, &s, &run, &mut output_timer)?;
+        let output_seconds = output_timer.total();
         let engine_view = match &probe {
-            Some(probe) => {
-                let out = prepared.finish(&passes, &s, &run, &mut StageTimer::new())?;
-                Some(prepared.engine_view_against(probe, &out.encoded, s.filter)?)
-            }
+            Some(probe) => Some(prepared.engine_view_against(probe, &out.encoded, s.filter)?),
             None => None,
         };
+        let mut stages = passes.stages.clone();
+        stages.extend(output_timer.into_stages());
         let default_settings = b.is_default();
         if default_settings && !default_ao.iter().any(|(l, _)| *l == label) {
             // The maps show texels inside geometry as the reference's (not
@@ -191,9 +197,10 @@ pub fn sweep(
             label,
             method: b.method,
             default_settings,
-            passes: passes.stages.clone(),
+            passes: stages,
             bake_seconds,
-            end_to_end_seconds: shared_seconds + bake_seconds
+            output_seconds,
+            end_to_end_seconds: shared_seconds + bake_seconds + output_seconds
                 - if b.method == Method::Adaptive {
                     validity_seconds
                 } else {
@@ -212,7 +219,9 @@ pub fn sweep(
         });
         pb.inc(1);
     }
-    let equal_error = equal_error(&runs);
+    let equal_engine_view =
+        equal_error(&runs, |r: &RunFigures| r.engine_view.map(|e| e.all.ao_rmse));
+    let equal_error = equal_error(&runs, |r| Some(r.ao.rmse));
 
     let stability = if rs.stability_rays > 0 {
         pb.set_message("scale stability");
@@ -245,6 +254,7 @@ pub fn sweep(
         shared_seconds,
         runs,
         equal_error,
+        equal_engine_view,
         stability,
         reference_seams,
         files: Vec::new(),
@@ -258,24 +268,29 @@ pub fn sweep(
     })
 }
 
-/// The equal-error comparison of a sweep's runs (see [`EqualError`]).
-pub fn equal_error(runs: &[RunFigures]) -> Option<EqualError> {
+/// The equal-error comparison of a sweep's runs (see [`EqualError`]) on
+/// the error `error` reads from a run (the AO RMSE at texel centres, or
+/// the engine view's over surface points); runs without it are left out.
+pub fn equal_error(
+    runs: &[RunFigures],
+    error: impl Fn(&RunFigures) -> Option<f64>,
+) -> Option<EqualError> {
     let curve = |m: Method| -> Vec<(f64, f64)> {
         runs.iter()
             .filter(|r| r.method == m)
-            .map(|r| (r.end_to_end_seconds, r.ao.rmse))
+            .filter_map(|r| Some((r.end_to_end_seconds, error(r)?)))
             .collect()
     };
     let mc_by_rays: Vec<(f64, f64)> = runs
         .iter()
         .filter(|r| r.method == Method::Mc)
-        .map(|r| (r.rays_per_texel, r.ao.rmse))
+        .filter_map(|r| Some((r.rays_per_texel, error(r)?)))
         .collect();
     let target = loglog_at(&mc_by_rays, TARGET_RAYS as f64)?;
     let mc_seconds = cost_at_error(&curve(Method::Mc), target);
     let methods = [Method::Sheared, Method::Adaptive]
         .into_iter()
-        .filter(|&m| runs.iter().any(|r| r.method == m))
+        .filter(|&m| runs.iter().any(|r| r.method == m && error(r).is_some()))
         .map(|method| {
             let points = curve(method);
             let seconds = cost_at_error(&points, target);
@@ -364,6 +379,7 @@ mod tests {
             default_settings: false,
             passes: Vec::new(),
             bake_seconds: seconds,
+            output_seconds: 0.0,
             end_to_end_seconds: seconds,
             rays_cast: 0,
             rays_per_texel: rays,
@@ -381,6 +397,10 @@ mod tests {
         }
     }
 
+    fn ao(r: &RunFigures) -> Option<f64> {
+        Some(r.ao.rmse)
+    }
+
     #[test]
     fn equal_error_speedup() {
         // MC: error 0.16/sqrt(rays), time = rays / 64 s; error at 256 rays
@@ -391,7 +411,7 @@ mod tests {
             .collect();
         runs.push(run(Method::Sheared, 0.5, 10.0, 0.02));
         runs.push(run(Method::Sheared, 2.0, 40.0, 0.005));
-        let e = equal_error(&runs).unwrap();
+        let e = equal_error(&runs, ao).unwrap();
         assert!((e.target_ao_rmse - 0.01).abs() < 1e-12);
         assert!((e.mc_seconds.unwrap() - 4.0).abs() < 1e-9);
         let s = e.of(Method::Sheared).unwrap();
@@ -401,9 +421,35 @@ mod tests {
         assert!(e.of(Method::Adaptive).is_none());
         // No sheared run good enough: no speed-up, best error reported.
         runs.truncate(4);
-        let e = equal_error(&runs).unwrap();
+        let e = equal_error(&runs, ao).unwrap();
         let s = e.of(Method::Sheared).unwrap();
         assert_eq!(s.speedup, None);
         assert_eq!(s.best_ao_rmse, Some(0.02));
+    }
+
+    #[test]
+    fn runs_without_the_error_are_left_out_of_the_comparison() {
+        // The engine view's comparison: only the runs that measured it. MC
+        // at 16 and 1024 rays measured 0.04 and 0.005, so MC-256's is
+        // interpolated in log-log: 0.01 at 4 s; a 64-ray MC run without the
+        // error (its 0.02 at texel centres) must not move it, and a sheared
+        // method without any is not compared.
+        let mut runs: Vec<RunFigures> = [16.0, 64.0, 1024.0]
+            .iter()
+            .map(|&n: &f64| run(Method::Mc, n / 64.0, n, 0.16 / n.sqrt()))
+            .collect();
+        runs[1].ao.rmse = 0.02 * 1.5;
+        runs.push(run(Method::Adaptive, 1.0, 10.0, 0.01));
+        runs.push(run(Method::Sheared, 1.0, 10.0, 0.001));
+        let measured = |r: &RunFigures| {
+            (r.method != Method::Sheared && r.rays_per_texel != 64.0).then_some(r.ao.rmse)
+        };
+        let e = equal_error(&runs, measured).unwrap();
+        assert!((e.target_ao_rmse - 0.01).abs() < 1e-12);
+        assert!((e.mc_seconds.unwrap() - 4.0).abs() < 1e-9);
+        assert!((e.of(Method::Adaptive).unwrap().speedup.unwrap() - 4.0).abs() < 1e-9);
+        assert!(e.of(Method::Sheared).is_none());
+        // No Monte Carlo run measured it: no comparison.
+        assert!(equal_error(&runs, |r| (r.method != Method::Mc).then_some(r.ao.rmse)).is_none());
     }
 }
