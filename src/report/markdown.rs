@@ -28,7 +28,7 @@ pub fn markdown(r: &SweepReport) -> String {
         r.max_distance_world
     ));
     line(format!(
-        "Reference: {}-ray Monte Carlo (seed {}), {:.2} s. Shared stages (load, unwrap, rasterize, BVH, validity, dilate, encode, write): {:.2} s, counted in every end-to-end time but the validity stage's {:.2} s in the adaptive runs' (their pre-pass makes its test on the same rays). Errors are per texel against the reference, over the {} texels not inside geometry ({} inside are filled from their neighbours in the output and left out); AO bias > 0 means too bright.\n",
+        "Reference: {}-ray Monte Carlo (seed {}), {:.2} s. Shared stages (load, unwrap, rasterize, BVH, validity, write): {:.2} s, counted in every end-to-end time but the validity stage's {:.2} s in the adaptive runs' (their pre-pass makes its test on the same rays); each run adds its own passes and output stages (border fit, seams, dilate, encode). Errors are per texel against the reference, over the {} texels not inside geometry ({} inside are filled from their neighbours in the output and left out); AO bias > 0 means too bright.\n",
         r.reference_rays,
         r.reference_seed,
         r.reference_seconds,
