@@ -156,6 +156,16 @@ impl EqualError {
     pub fn of(&self, method: Method) -> Option<&MethodAtError> {
         self.methods.iter().find(|m| m.method == method)
     }
+
+    /// End-to-end seconds at which `method`'s runs reach the target
+    /// (Monte Carlo's own, or a swept method's), where a plot crosses its
+    /// curve.
+    pub fn crossing(&self, method: Method) -> Option<f64> {
+        match method {
+            Method::Mc => self.mc_seconds,
+            m => self.of(m).and_then(|m| m.seconds),
+        }
+    }
 }
 
 /// One row of the scale-stability table.

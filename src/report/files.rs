@@ -99,7 +99,6 @@ pub fn write_report(sweep: &Sweep, dir: &Path) -> Result<SweepReport> {
 /// each method reaches it crossed.
 pub fn error_vs_time(r: &SweepReport) -> Plot {
     let e = r.equal_error.as_ref();
-    let at = |m: Method| e.and_then(|e| e.of(m)).and_then(|m| m.seconds);
     Plot {
         title: format!(
             "{}: AO error vs end-to-end time ({} texels, {} cores)",
@@ -109,14 +108,7 @@ pub fn error_vs_time(r: &SweepReport) -> Plot {
         ),
         x_desc: "end-to-end seconds (log)".into(),
         y_desc: format!("AO RMSE vs {}-ray reference (log)", r.reference_rays),
-        curves: method_curves(
-            r,
-            |x| Some(x.ao.rmse),
-            |m| match m {
-                Method::Mc => e.and_then(|e| e.mc_seconds),
-                m => at(m),
-            },
-        ),
+        curves: method_curves(r, |x| Some(x.ao.rmse), |m| e.and_then(|e| e.crossing(m))),
         target: e.map(|e| Target {
             error: e.target_ao_rmse,
             legend: format!(
@@ -183,7 +175,6 @@ pub fn engine_view_vs_time(r: &SweepReport) -> Option<Plot> {
         .find(|x| x.method == Method::Mc && x.default_settings)
         .and_then(|x| x.engine_view);
     let e = r.equal_engine_view.as_ref();
-    let at = |m: Method| e.and_then(|e| e.of(m)).and_then(|m| m.seconds);
     Some(Plot {
         title: format!(
             "{}: engine-view AO error vs end-to-end time ({} points)",
@@ -198,10 +189,7 @@ pub fn engine_view_vs_time(r: &SweepReport) -> Option<Plot> {
         curves: method_curves(
             r,
             |x| x.engine_view.map(|e| e.all.ao_rmse),
-            |m| match m {
-                Method::Mc => e.and_then(|e| e.mc_seconds),
-                m => at(m),
-            },
+            |m| e.and_then(|e| e.crossing(m)),
         ),
         target: e.map(|e| Target {
             error: e.target_ao_rmse,
