@@ -6,7 +6,7 @@
 //! Every command runs through [`aobake::job`]. The README's usage blocks
 //! are this program's `--help` output, checked by `tests/cli.rs`.
 
-use aobake::job::{self, BakeSettings, RunOptions};
+use aobake::job::{self, BakeSettings, Rebake, RunOptions};
 use aobake::report::ReportSettings;
 use aobake::shard::Shard;
 use aobake::stage::StageTimer;
@@ -35,7 +35,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Bake IN into OUT (the same as `aobake IN OUT`)
-    Bake(BakeArgs),
+    Bake(Box<BakeArgs>),
     /// Write OUT from the complete set of shard partials beside it
     /// (OUT.shard-I-of-N, from `aobake IN OUT --shard I/N`), byte-identical
     /// to a bake in one process; refuses a missing, truncated, duplicated or
@@ -67,6 +67,15 @@ struct BakeArgs {
     /// auto/N: a Kubernetes Indexed Job's JOB_COMPLETION_INDEX
     #[arg(long, value_name = "I/N|auto|auto/N")]
     shard: Option<String>,
+    /// An earlier output of aobake (only read): taken as OUT when nothing
+    /// the bake reads changed since (the input's bytes, the settings, this
+    /// aobake), else every texel is baked and a line says why
+    #[arg(long, value_name = "PREV")]
+    reuse: Option<PathBuf>,
+    /// With --reuse: bake again what an edit can change, or all (PREV
+    /// checked, not used) [default: changed]
+    #[arg(long, value_enum, value_name = "WHAT")]
+    rebake: Option<Rebake>,
     #[command(flatten)]
     run: RunOptions,
     /// Write a JSON report (stage times, texels, rays, layer, seam jumps)
@@ -203,6 +212,11 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
     let (s, run) = (&cli.settings, &cli.run);
     let quiet = !run.progress;
     let report = match &cli.shard {
+        Some(_) if cli.reuse.is_some() => {
+            anyhow::bail!(
+                "--reuse with --shard is not supported yet: reuse in one process, or shard a full bake"
+            )
+        }
         Some(text) => {
             let shard = Shard::parse(text, &|k| std::env::var(k).ok())?;
             let (path, report) = job::bake_shard(input, output, s, run, shard)?;
@@ -221,11 +235,35 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
             }
             report
         }
-        None => job::bake(input, output, s, run)?,
+        None => {
+            if cli.rebake.is_some() && cli.reuse.is_none() {
+                anyhow::bail!("--rebake needs --reuse PREV");
+            }
+            let rebake = cli.rebake.unwrap_or_default();
+            let prev = cli.reuse.as_deref().map(|p| (p, rebake));
+            job::bake_reusing(input, output, prev, s, run)?
+        }
     };
     if !quiet {
         for w in &report.warnings {
             eprintln!("aobake: warning: {w}");
+        }
+        match &report.reuse {
+            Some(r) if r.reused => {
+                eprintln!(
+                    "aobake: reused {}: nothing the bake reads changed, {} is its bytes ({:.2} s)",
+                    r.prev,
+                    output.display(),
+                    report.total_seconds
+                );
+                return write_report(cli, &report);
+            }
+            Some(r) => {
+                if let Some(why) = &r.full_bake {
+                    eprintln!("aobake: full bake, {} not reused: {why}", r.prev);
+                }
+            }
+            None => {}
         }
         let pages = report.pages.iter().filter(|p| p.baked).count();
         eprintln!(
@@ -250,8 +288,12 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
             );
         }
     }
+    write_report(cli, &report)
+}
+
+fn write_report(cli: &BakeArgs, report: &job::Report) -> anyhow::Result<()> {
     if let Some(path) = &cli.report {
-        let text = serde_json::to_vec_pretty(&report)?;
+        let text = serde_json::to_vec_pretty(report)?;
         aobake::file::write_atomic(path, &text)?;
     }
     Ok(())

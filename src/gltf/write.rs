@@ -60,6 +60,9 @@ pub struct BakeRecord {
     pub height: u32,
     /// The lookup the texels are fitted for (written when not bilinear).
     pub filter: crate::lightmap::Filter,
+    /// `fingerprint` (`crate::job::reuse`), when the input's bytes are
+    /// known; written last, unsealed.
+    pub fingerprint: Option<Value>,
 }
 
 /// How the bake is written.
@@ -249,6 +252,9 @@ pub fn build_glb(
     }
     if !record.filter.is_bilinear() {
         exts[EXTENSION]["filter"] = json!(record.filter.name());
+    }
+    if let Some(f) = &record.fingerprint {
+        exts[EXTENSION]["fingerprint"] = f.clone();
     }
     let used = obj.entry("extensionsUsed").or_insert_with(|| json!([]));
     if let Some(u) = used.as_array_mut()

@@ -29,6 +29,7 @@
 //! - `page`: a page's passes and output, and the write-back;
 //! - `report`: the `--report` JSON;
 //! - [`device`]: where the rays are traced (`--device`);
+//! - [`reuse`]: the output's fingerprint, and `--reuse PREV`;
 //! - [`shard`](mod@shard): sharded bakes and their merge.
 
 pub mod across;
@@ -36,6 +37,7 @@ pub mod device;
 pub(crate) mod level;
 pub(crate) mod page;
 pub(crate) mod report;
+pub mod reuse;
 pub mod settings;
 pub mod shard;
 mod write;
@@ -46,6 +48,7 @@ pub use page::{BakePasses, Page, PageOutput};
 pub use report::{
     AdaptiveReport, PageDone, PageReport, Report, ShearedReport, VisibilityReport, level_report,
 };
+pub use reuse::{Rebake, ReuseReport};
 pub use settings::{BakeSettings, Device, Method, RunOptions, UvSource, VisibilityMode};
 pub use shard::{Merged, bake_shard, merge};
 pub use write::write;
@@ -63,6 +66,7 @@ use crate::lightmap::BorderMode;
 use crate::lightmap::Lightmap;
 use crate::lightmap::border;
 use crate::stage::StageTimer;
+use reuse::Decision;
 use std::path::Path;
 
 /// One bake of one scene: the scene, what the bake is, how the run goes,
@@ -108,6 +112,10 @@ pub struct Job<'a> {
     pub timer: StageTimer,
     /// What [`Job::write`]'s pass over the seams across pages did.
     pub across: Option<AcrossReport>,
+    /// The input's hash ([`reuse::input_hash`]) and the device the rays
+    /// were traced on, when the input's bytes are known: the output then
+    /// carries its fingerprint, for a later `--reuse`.
+    pub traced: Option<(u64, Device)>,
 }
 
 impl<'a> Job<'a> {
@@ -124,6 +132,7 @@ impl<'a> Job<'a> {
             run,
             timer,
             across: None,
+            traced: None,
         }
     }
 
@@ -207,6 +216,7 @@ impl<'a> Job<'a> {
             &encoded,
             self.settings,
             output_dir,
+            self.traced,
             &mut self.timer,
         )?;
         if let Some(failure) = level.tracer.gpu_failure() {
@@ -281,20 +291,95 @@ pub struct Baked {
 /// # Ok::<(), aobake::Error>(())
 /// ```
 pub fn bake(input: &Path, output: &Path, s: &BakeSettings, run: &RunOptions) -> Result<Report> {
+    bake_reusing(input, output, None, s, run)
+}
+
+/// [`bake`], with `--reuse PREV` (`prev`: PREV's path and what to bake
+/// again): PREV is taken as the output when it is what this bake would
+/// write ([`reuse`]), else every texel is baked and the report says why.
+/// PREV is read only; it may not be the output.
+pub fn bake_reusing(
+    input: &Path,
+    output: &Path,
+    prev: Option<(&Path, Rebake)>,
+    s: &BakeSettings,
+    run: &RunOptions,
+) -> Result<Report> {
     s.validate()?;
     check_output(input, output)?;
+    if let Some((prev, _)) = prev
+        && file::same_file(prev, output)
+    {
+        return Err(Error::option_conflict(
+            "reuse",
+            format!(
+                "{} is OUT; PREV is only read, write the new bake elsewhere",
+                output.display()
+            ),
+        ));
+    }
     let mut timer = StageTimer::new();
-    let scene = gltf::load(input)?;
+    let (bytes, scene) = gltf::load_with_bytes(input)?;
+    let input_hash = reuse::input_hash(&bytes, &scene.doc);
+    drop(bytes);
     timer.lap("load");
+    let mut reused = None;
+    if let Some((prev, rebake)) = prev {
+        let prev_bytes = std::fs::read(prev).map_err(|e| {
+            Error::option_conflict("reuse", format!("cannot read {}: {e}", prev.display()))
+        })?;
+        let decision = match rebake {
+            Rebake::All => Decision::Full("--rebake all".into()),
+            Rebake::Changed => reuse::decide(
+                &prev_bytes,
+                &reuse::Wanted {
+                    input: input_hash,
+                    settings: s,
+                    moved_uris: reuse::moved_uris(&scene.doc, prev, output),
+                },
+            ),
+        };
+        timer.lap("reuse check");
+        let full_bake = match decision {
+            Decision::Reuse => {
+                file::write_atomic(output, &prev_bytes)?;
+                timer.lap("save");
+                return Ok(report::reused_report(
+                    &prev_bytes,
+                    prev,
+                    input,
+                    &scene,
+                    s,
+                    timer,
+                ));
+            }
+            Decision::Full(why) => why,
+        };
+        reused = Some(ReuseReport {
+            prev: prev.display().to_string(),
+            reused: false,
+            full_bake: Some(full_bake),
+            texels_baked: 0,
+            texels_dirty: 0,
+            pages_reused: 0,
+        });
+    }
     let mut job = Job::new(&scene, s, run, timer);
     let level = Level::build(&scene, s, run, &mut job.timer)?;
+    job.traced = Some((input_hash, level.backend.device()));
     let all: Vec<u32> = (0..level.page_count()).collect();
     let done = job.pages(&level, &all, &mut |_, _, _| {})?;
     let encoded: Vec<&Encoded> = done.iter().map(|d| &d.encoded).collect();
     let (glb, warnings) = job.write(&level, &encoded, Some(file::parent_dir(output)))?;
     file::write_atomic(output, &glb)?;
     job.timer.lap("save");
-    Ok(job.report(&level, &done, warnings, Some(input)))
+    let mut report = job.report(&level, &done, warnings, Some(input));
+    if let Some(mut r) = reused {
+        r.texels_baked = report.texels;
+        r.texels_dirty = report.texels;
+        report.reuse = Some(r);
+    }
+    Ok(report)
 }
 
 /// Refuses an output path that is the input file.

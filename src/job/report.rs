@@ -7,16 +7,21 @@
 use super::across::AcrossReport;
 use super::level::Level;
 use super::page::{BakePasses, PageOutput};
+use super::reuse::ReuseReport;
 use crate::bake::adaptive::{self, AdaptiveStats};
 use crate::bake::sheared::{self, ShearedStats};
 use crate::encode::Encoded;
+use crate::gltf::Scene;
+use crate::gltf::container::glb_chunks;
 use crate::job::settings::{BakeSettings, Method};
 use crate::lightmap::BorderReport;
 use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
 use crate::shard::Shard;
-use crate::stage::{StageTime, total};
+use crate::stage::{StageTime, StageTimer, total};
 use serde::Serialize;
+use serde_json::Value;
+use std::path::Path;
 
 /// A page baked and encoded, and its figures for the report (what a bake
 /// keeps of a page once its working set is freed).
@@ -72,7 +77,7 @@ impl PageDone {
 }
 
 /// The `--report` JSON.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct Report {
     pub input: String,
     pub method: Method,
@@ -142,10 +147,13 @@ pub struct Report {
     /// The stages' seconds added up.
     pub total_seconds: f64,
     pub warnings: Vec<String>,
+    /// `--reuse PREV`: whether PREV was taken, and why not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reuse: Option<ReuseReport>,
 }
 
 /// One atlas page in the report.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct PageReport {
     pub page: u32,
     pub width: u32,
@@ -396,6 +404,7 @@ pub fn level_report(
         stages: Vec::new(),
         total_seconds: 0.0,
         warnings,
+        reuse: None,
     }
 }
 
@@ -416,4 +425,62 @@ fn merged<'a, T: Clone + 'a>(
         }
     }
     acc.map(|(a, _)| a)
+}
+
+/// The report of a run that took PREV as its output: the atlas's size
+/// and pages as PREV's extension records them, no texel baked.
+pub(crate) fn reused_report(
+    prev_bytes: &[u8],
+    prev: &Path,
+    input: &Path,
+    scene: &Scene,
+    s: &BakeSettings,
+    timer: StageTimer,
+) -> Report {
+    let ext = glb_chunks(prev_bytes)
+        .ok()
+        .and_then(|(json, _)| serde_json::from_slice::<Value>(json).ok())
+        .and_then(|j| j.pointer("/extensions/AOBAKE_lightmap").cloned())
+        .unwrap_or_default();
+    let size = |v: &Value| -> (u32, u32) {
+        let n = |i: usize| v.get(i).and_then(Value::as_u64).unwrap_or(0) as u32;
+        (n(0), n(1))
+    };
+    let (atlas_width, atlas_height) = size(&ext["resolution"]);
+    let pages: Vec<(u32, u32)> = match ext.get("pages").and_then(Value::as_array) {
+        Some(p) => p.iter().map(size).collect(),
+        None => vec![(atlas_width, atlas_height)],
+    };
+    Report {
+        input: input.display().to_string(),
+        method: s.method,
+        atlas_width,
+        atlas_height,
+        pages: (pages.iter().enumerate())
+            .map(|(k, &(width, height))| PageReport {
+                page: k as u32,
+                width,
+                height,
+                ..PageReport::default()
+            })
+            .collect(),
+        max_distance: ext
+            .get("maxDistance")
+            .and_then(Value::as_f64)
+            .unwrap_or(0.0),
+        seed: s.seed,
+        threads: rayon::current_num_threads(),
+        total_seconds: timer.total(),
+        stages: timer.into_merged_stages(),
+        warnings: scene.warnings.clone(),
+        reuse: Some(ReuseReport {
+            prev: prev.display().to_string(),
+            reused: true,
+            full_bake: None,
+            texels_baked: 0,
+            texels_dirty: 0,
+            pages_reused: pages.len(),
+        }),
+        ..Report::default()
+    }
 }

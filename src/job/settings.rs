@@ -61,7 +61,7 @@ pub(crate) const DEFAULT_MAX_DISTANCE_FRACTION: f64 = 0.1;
 /// the sheared filter of Egan et al. 2011, [`crate::bake::sheared`]; named
 /// `filtered` before the adaptive method, which the command line still
 /// accepts).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 #[non_exhaustive]
@@ -69,6 +69,7 @@ pub enum Method {
     #[cfg_attr(feature = "cli", value(alias = "filtered"))]
     Sheared,
     Mc,
+    #[default]
     Adaptive,
 }
 

@@ -2,31 +2,38 @@
 //!
 //! In: the scene, the [`Level`], every page's [`Encoded`] images and the
 //! settings. Out: the GLB's bytes ([`gltf::write`](crate::gltf::write)
-//! edits the input's JSON) and the warnings, the scene's and the writer's,
-//! with the one a relaxed atlas gets.
+//! edits the input's JSON, and the fingerprint is sealed in) and the
+//! warnings, the scene's and the writer's, with the one a relaxed atlas
+//! gets.
 
 use super::level::Level;
+use super::reuse::{self, Fingerprint};
 use crate::atlas::AtlasSize;
 use crate::encode::Encoded;
 use crate::error::Result;
 use crate::gltf::Scene;
 use crate::gltf::write::{self, BakeRecord, OutputOptions};
-use crate::job::settings::{BakeSettings, Method, UvSource};
+use crate::job::settings::{BakeSettings, Device, Method, UvSource};
 use crate::stage::StageTimer;
 use std::path::Path;
 
 /// The output GLB of a level from every page's encoded images (`pages[k]`
 /// is page k's), with the scene's warnings and the writer's. `output_dir`:
 /// where the GLB will be written, so external URIs resolve from there.
+/// `traced`: the input's hash ([`reuse::input_hash`]) and the device its
+/// rays were traced on, when known: the output then carries its sealed
+/// [`Fingerprint`].
 pub fn write(
     scene: &Scene,
     level: &Level,
     pages: &[&Encoded],
     s: &BakeSettings,
     output_dir: Option<&Path>,
+    traced: Option<(u64, Device)>,
     timer: &mut StageTimer,
 ) -> Result<(Vec<u8>, Vec<String>)> {
     timer.restart();
+    let fingerprint = traced.map(|(h, device)| Fingerprint::new(h, s, device));
     let options = OutputOptions {
         record: BakeRecord {
             method: s.method.name().to_string(),
@@ -40,6 +47,7 @@ pub fn write(
             width: level.atlas.width,
             height: level.atlas.height,
             filter: s.filter,
+            fingerprint: fingerprint.as_ref().map(Fingerprint::to_json),
         },
         occlusion: s.occlusion,
         visibility_meshes: level.visibility_meshes.clone(),
@@ -74,7 +82,7 @@ pub fn write(
             },
         ));
     }
-    let glb = write::build_glb(
+    let mut glb = write::build_glb(
         scene,
         &level.geometry,
         &level.atlas,
@@ -82,6 +90,9 @@ pub fn write(
         &options,
         &mut warnings,
     )?;
+    if let Some(f) = &fingerprint {
+        reuse::seal(&mut glb, f);
+    }
     timer.lap("write");
     Ok((glb, warnings))
 }

@@ -125,6 +125,7 @@ pub fn sweep(
         &[&out.encoded],
         &ref_settings,
         None,
+        None,
         &mut timer,
     )?;
     let reference_seams = out.seams;
