@@ -329,6 +329,13 @@ pub fn points(
     per_tri.into_iter().flatten().collect()
 }
 
+/// The key of a fit point's rays (its receiver's `texel`, which seeds its
+/// sequence): a hash of its UV's bits. Points are placed by the global
+/// grid, so a point keeps its key whatever else is on the page.
+fn point_key(uv: Vec2) -> u32 {
+    mix64(u64::from(uv.x.to_bits()) << 32 | u64::from(uv.y.to_bits())) as u32
+}
+
 /// Points per grid cell edge in a sliver's cell: SLIVER_SUB^2 points where
 /// the grid has one, each a full fit row. A chart's acute tip or a strip
 /// thinner than the grid spacing gets a grid point only here and there, and
@@ -373,8 +380,12 @@ pub fn anchors(
         height,
         ..Default::default()
     };
-    for (k, p) in points.iter().enumerate() {
-        r.push_surface_point(k as u32, &tris[p.tri as usize], p.bary, true);
+    // Each point's rays are keyed by where it lies on the page, not by its
+    // place in the list: an edit that adds or removes points elsewhere
+    // (a moved mesh's cells turning flat or varied) leaves every other
+    // point's rays as they were, so the fit changes only near the edit.
+    for p in &points {
+        r.push_surface_point(point_key(p.uv), &tris[p.tri as usize], p.bary, true);
     }
     let params = BakeParams { max_distance, seed };
     let inside = validity::inside_geometry(&r, tracer, max_distance, seed);
@@ -406,7 +417,7 @@ pub fn anchors(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
+    use glam::{Vec3, Vec3A};
 
     fn square(w: f32) -> Vec<SurfaceTri> {
         // A w x w texel square at (2, 2), as two triangles.
@@ -428,6 +439,56 @@ mod tests {
                 footprint: 1.0,
             })
             .collect()
+    }
+
+    /// A w x w texel square at UV `at`, lying at world `at + offset` in
+    /// the z = 0 plane.
+    fn square_at(at: Vec2, w: f32, offset: Vec3) -> Vec<SurfaceTri> {
+        square(w)
+            .into_iter()
+            .map(|mut t| {
+                for k in 0..3 {
+                    t.uv[k] += at - Vec2::splat(2.0);
+                    t.pos[k] = Vec3::new(t.uv[k].x, t.uv[k].y, 0.0) + offset;
+                }
+                t
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_points_target_does_not_depend_on_the_points_before_it() {
+        // Square A under a slanted roof (its points' targets are noisy
+        // fractions), and square B far away in the world, on another part
+        // of the page and before A in the triangle list: with B or without,
+        // A's points are the same and must trace the same rays, as they
+        // lie on the page, not as they are counted.
+        let a = square_at(Vec2::new(1.0, 1.0), 4.0, Vec3::ZERO);
+        let b = square_at(Vec2::new(6.0, 6.0), 3.0, Vec3::new(100.0, 0.0, 0.0));
+        let roof = [
+            Vec3A::new(-5.0, -5.0, 0.5),
+            Vec3A::new(10.0, -5.0, 0.5),
+            Vec3A::new(-5.0, 10.0, 2.0),
+        ];
+        let tracer = Tracer::with_sides(&[roof], &[false]);
+        let all = vec![true; 100];
+        let fit = |tris: &[SurfaceTri]| {
+            let (anchors, _) = anchors(tris, 10, 10, &all, &all, &tracer, 3.0, 5, false);
+            anchors
+        };
+        let alone = fit(&a);
+        let both = fit(&[b, a.clone()].concat());
+        assert!(alone.len() > 20, "{}", alone.len());
+        // Not all open or closed: the rays decide the targets.
+        assert!(
+            alone
+                .iter()
+                .any(|x| x.target[0] > 0.05 && x.target[0] < 0.95)
+        );
+        for x in &alone {
+            let y = both.iter().find(|y| y.uv == x.uv).expect("the same point");
+            assert_eq!(x.target, y.target, "{:?}", x.uv);
+        }
     }
 
     #[test]
