@@ -205,6 +205,10 @@ fn every_prev_that_is_not_this_bakes_output_gets_a_reason_and_a_full_bake() {
     let (_, report) = bake(&moved_input, &out, &["--reuse", prev.to_str().unwrap()]);
     let why = report["reuse"]["full_bake"].as_str().unwrap();
     assert!(why.contains("input differs"), "{why}");
+    assert!(
+        why.contains("moved nodes[2] \"small.box\"; 3 unchanged"),
+        "{why}"
+    );
     assert_eq!(
         std::fs::read(&out).unwrap(),
         std::fs::read(&moved_fresh).unwrap()

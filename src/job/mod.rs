@@ -335,6 +335,11 @@ pub fn bake_reusing(
                 &reuse::Wanted {
                     input: input_hash,
                     settings: s,
+                    nodes: reuse::node_prints(&scene),
+                    node_name: &|k| {
+                        let name = scene.doc.json.pointer(&format!("/nodes/{k}/name"));
+                        name.and_then(serde_json::Value::as_str).map(str::to_string)
+                    },
                     moved_uris: reuse::moved_uris(&scene.doc, prev, output),
                 },
             ),

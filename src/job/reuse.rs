@@ -23,8 +23,8 @@
 
 use super::settings::{BakeSettings, Device};
 use crate::bits::mix64;
-use crate::gltf::Document;
 use crate::gltf::container::glb_chunks;
+use crate::gltf::{Document, PrimitiveGeometry, Scene};
 use crate::shard::hash64;
 use serde::Serialize;
 use serde_json::{Value, json};
@@ -45,17 +45,70 @@ pub struct Fingerprint {
     pub settings: String,
     /// Where the rays were traced: `cpu` or `gpu`.
     pub device: Device,
+    /// Every node that places a triangle primitive ([`node_prints`]).
+    pub nodes: Vec<NodePrint>,
+}
+
+/// A node's part of the scene as the bake reads it: the shape of what it
+/// places (mesh space) and where (its world transform), hashed apart, so a
+/// later bake can say which nodes moved, which changed shape, which came
+/// and went.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodePrint {
+    pub node: usize,
+    /// Hash of its primitives' positions, normals, triangles and the flags
+    /// the bake reads (double-sided, morphed), hex.
+    pub shape: String,
+    /// Hash of its world transforms and whether each placement is baked.
+    pub transform: String,
+}
+
+/// Every node's [`NodePrint`], by node index.
+pub fn node_prints(scene: &Scene) -> Vec<NodePrint> {
+    let shapes: Vec<u64> = scene.geometries.iter().map(shape_hash).collect();
+    let mut by_node: std::collections::BTreeMap<usize, (u64, u64)> = Default::default();
+    for inst in &scene.instances {
+        let (shape, transform) = by_node.entry(inst.node).or_insert((0x5eed, 0x7a5e));
+        *shape = mix64(*shape ^ shapes[inst.geometry]);
+        let words = inst.transform.to_cols_array().map(f64::to_bits);
+        *transform =
+            (words.iter().chain([&(inst.baked as u64)])).fold(*transform, |h, &w| mix64(h ^ w));
+    }
+    (by_node.into_iter())
+        .map(|(node, (shape, transform))| NodePrint {
+            node,
+            shape: hex(shape),
+            transform: hex(transform),
+        })
+        .collect()
+}
+
+fn shape_hash(g: &PrimitiveGeometry) -> u64 {
+    let f = |h: u64, v: &[f32; 3]| {
+        mix64(h ^ (u64::from(v[0].to_bits()) << 32 | u64::from(v[1].to_bits())))
+            ^ u64::from(v[2].to_bits())
+    };
+    let mut h =
+        mix64(g.positions.len() as u64 ^ (g.double_sided as u64) << 40 ^ (g.morphed as u64) << 41);
+    h = g.positions.iter().fold(h, f);
+    if let Some(n) = &g.normals {
+        h = n.iter().fold(mix64(h ^ 1), f);
+    }
+    g.triangles
+        .iter()
+        .fold(mix64(h ^ 2), |h, &t| mix64(h ^ u64::from(t)))
 }
 
 impl Fingerprint {
     /// The fingerprint of a bake of an input with [`input_hash`] `input`
     /// under `s`, traced on `device`.
-    pub fn new(input: u64, s: &BakeSettings, device: Device) -> Fingerprint {
+    pub fn new(input: u64, s: &BakeSettings, device: Device, scene: &Scene) -> Fingerprint {
         Fingerprint {
             aobake: env!("CARGO_PKG_VERSION").to_string(),
             input: hex(input),
             settings: hex(settings_hash(s)),
             device,
+            nodes: node_prints(scene),
         }
     }
 
@@ -66,6 +119,7 @@ impl Fingerprint {
             "input": self.input,
             "settings": self.settings,
             "device": device_name(self.device),
+            "nodes": self.nodes.iter().map(|n| json!([n.node, n.shape, n.transform])).collect::<Vec<_>>(),
             "integrity": UNSEALED,
         })
     }
@@ -97,31 +151,26 @@ pub fn settings_hash(s: &BakeSettings) -> u64 {
     hash64(&serde_json::to_vec(&s).expect("settings serialize"))
 }
 
-/// The byte pattern of an unsealed fingerprint's tail in a GLB's JSON:
-/// unique to it (it holds the settings hash and the device).
-fn unsealed_tail(f: &Fingerprint) -> String {
-    format!(
-        "\"settings\":\"{}\",\"device\":\"{}\",\"integrity\":\"{UNSEALED}\"",
-        f.settings,
-        device_name(f.device)
-    )
+/// Writes the integrity of `glb` (written with the fingerprint `f`
+/// unsealed, [`Fingerprint::to_json`]) into it: the hash of every byte of
+/// the file with `integrity` as zeros. Same length, so the GLB stays
+/// valid.
+pub fn seal(glb: &mut [u8], f: &Value) {
+    if let Some(at) = integrity_at(glb, f) {
+        let h = hex(hash64(glb));
+        glb[at..at + UNSEALED.len()].copy_from_slice(h.as_bytes());
+    }
 }
 
-/// Writes the integrity of `glb` (written with `f` unsealed) into it: the
-/// hash of every byte of the file with `integrity` as zeros. Same length,
-/// so the GLB stays valid.
-pub fn seal(glb: &mut [u8], f: &Fingerprint) {
-    let tail = unsealed_tail(f);
-    let Some(at) = find(glb, tail.as_bytes()) else {
-        return;
-    };
-    let h = hex(hash64(glb));
-    let start = at + tail.len() - 1 - UNSEALED.len();
-    glb[start..start + UNSEALED.len()].copy_from_slice(h.as_bytes());
-}
-
-fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
-    hay.windows(needle.len()).position(|w| w == needle)
+/// Where the value of fingerprint `f`'s `integrity` lies in `glb`: the
+/// fingerprint is found as the writer serialized it (compact, fields in
+/// order: its hashes make it unique in the file), its integrity the last
+/// field.
+fn integrity_at(glb: &[u8], f: &Value) -> Option<usize> {
+    let text = serde_json::to_string(f).ok()?;
+    let value = f.get("integrity")?.as_str()?;
+    let at = glb.windows(text.len()).position(|w| w == text.as_bytes())?;
+    Some(at + text.rfind(value)?)
 }
 
 /// Whether a bake may take PREV as its output.
@@ -139,6 +188,9 @@ pub enum Decision {
 pub struct Wanted<'a> {
     pub input: u64,
     pub settings: &'a BakeSettings,
+    /// The input's [`node_prints`], and a node's name for the messages.
+    pub nodes: Vec<NodePrint>,
+    pub node_name: &'a dyn Fn(usize) -> Option<String>,
     /// The input has relative URIs and PREV lies in another directory
     /// than the output.
     pub moved_uris: bool,
@@ -183,19 +235,15 @@ fn check(prev: &[u8], want: &Wanted) -> Result<(), String> {
                 ));
             }
         },
+        nodes: read_nodes(f).ok_or("PREV's fingerprint has no readable nodes")?,
     };
     // The integrity first: an edited file's other fields prove nothing.
-    let sealed = format!(
-        "\"settings\":\"{}\",\"device\":\"{}\",\"integrity\":\"{integrity}\"",
-        recorded.settings,
-        device_name(recorded.device)
-    );
-    let mut copy = prev.to_vec();
-    let at = find(&copy, sealed.as_bytes())
+    let at = (integrity_at(prev, f))
+        .filter(|_| integrity.len() == UNSEALED.len())
         .ok_or("PREV was changed after aobake wrote it (its fingerprint is not as written)")?;
-    let start = at + sealed.len() - 1 - integrity.len();
-    copy[start..start + integrity.len()].copy_from_slice(UNSEALED.as_bytes());
-    if integrity.len() != UNSEALED.len() || hex(hash64(&copy)) != integrity {
+    let mut copy = prev.to_vec();
+    copy[at..at + UNSEALED.len()].copy_from_slice(UNSEALED.as_bytes());
+    if hex(hash64(&copy)) != integrity {
         return Err(
             "PREV was changed after aobake wrote it (its integrity hash does not match)".into(),
         );
@@ -221,10 +269,10 @@ fn check(prev: &[u8], want: &Wanted) -> Result<(), String> {
         ));
     }
     if recorded.input != hex(want.input) {
-        return Err(
-            "the input differs from the one PREV was baked from (only an unchanged input is reused so far)"
-                .into(),
-        );
+        return Err(format!(
+            "the input differs from the one PREV was baked from: {} (only an unchanged input is reused so far)",
+            NodeChanges::between(&recorded.nodes, &want.nodes).describe(want.node_name)
+        ));
     }
     if want.moved_uris {
         return Err(
@@ -283,6 +331,87 @@ pub enum Rebake {
     All,
 }
 
+fn read_nodes(f: &Value) -> Option<Vec<NodePrint>> {
+    (f.get("nodes")?.as_array()?.iter())
+        .map(|n| {
+            Some(NodePrint {
+                node: n.get(0)?.as_u64()? as usize,
+                shape: n.get(1)?.as_str()?.to_string(),
+                transform: n.get(2)?.as_str()?.to_string(),
+            })
+        })
+        .collect()
+}
+
+/// Which nodes an edit touched, by node index: between PREV's prints and
+/// the input's.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NodeChanges {
+    /// Same shape, another transform.
+    pub moved: Vec<usize>,
+    /// Another shape (and maybe another transform).
+    pub reshaped: Vec<usize>,
+    pub added: Vec<usize>,
+    pub deleted: Vec<usize>,
+    pub unchanged: usize,
+}
+
+impl NodeChanges {
+    pub fn between(prev: &[NodePrint], now: &[NodePrint]) -> NodeChanges {
+        let before: std::collections::BTreeMap<usize, &NodePrint> =
+            prev.iter().map(|n| (n.node, n)).collect();
+        let after: std::collections::BTreeMap<usize, &NodePrint> =
+            now.iter().map(|n| (n.node, n)).collect();
+        let mut c = NodeChanges::default();
+        for (&k, a) in &after {
+            match before.get(&k) {
+                None => c.added.push(k),
+                Some(b) if b.shape != a.shape => c.reshaped.push(k),
+                Some(b) if b.transform != a.transform => c.moved.push(k),
+                Some(_) => c.unchanged += 1,
+            }
+        }
+        c.deleted = before
+            .keys()
+            .filter(|k| !after.contains_key(k))
+            .copied()
+            .collect();
+        c
+    }
+
+    /// One clause: the changes by kind, nodes named (a few of each).
+    pub fn describe(&self, name: &dyn Fn(usize) -> Option<String>) -> String {
+        let list = |nodes: &[usize]| {
+            let mut parts: Vec<String> = (nodes.iter().take(3))
+                .map(|&k| match name(k) {
+                    Some(n) => format!("nodes[{k}] \"{n}\""),
+                    None => format!("nodes[{k}]"),
+                })
+                .collect();
+            if nodes.len() > 3 {
+                parts.push(format!("{} more", nodes.len() - 3));
+            }
+            parts.join(", ")
+        };
+        let mut out: Vec<String> = [
+            ("moved", &self.moved),
+            ("reshaped", &self.reshaped),
+            ("added", &self.added),
+            ("deleted", &self.deleted),
+        ]
+        .into_iter()
+        .filter(|(_, v)| !v.is_empty())
+        .map(|(what, v)| format!("{what} {}", list(v)))
+        .collect();
+        if out.is_empty() {
+            out.push("no node's geometry or placement changed (other data did)".into());
+        } else {
+            out.push(format!("{} unchanged", self.unchanged));
+        }
+        out.join("; ")
+    }
+}
+
 /// What `--reuse` did, for the report.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct ReuseReport {
@@ -300,4 +429,69 @@ pub struct ReuseReport {
     pub texels_dirty: usize,
     /// Atlas pages taken from PREV (all of its pages when reused).
     pub pages_reused: usize,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn print(node: usize, shape: &str, transform: &str) -> NodePrint {
+        NodePrint {
+            node,
+            shape: shape.into(),
+            transform: transform.into(),
+        }
+    }
+
+    #[test]
+    fn node_changes_name_what_moved_reshaped_came_and_went() {
+        let prev = [
+            print(0, "a", "x"),
+            print(1, "b", "y"),
+            print(2, "c", "z"),
+            print(4, "e", "w"),
+        ];
+        let now = [
+            print(0, "a", "x"),  // unchanged
+            print(1, "b", "y2"), // moved
+            print(2, "c2", "z"), // reshaped
+            print(3, "d", "v"),  // added; 4 deleted
+        ];
+        let c = NodeChanges::between(&prev, &now);
+        assert_eq!(c.moved, [1]);
+        assert_eq!(c.reshaped, [2]);
+        assert_eq!(c.added, [3]);
+        assert_eq!(c.deleted, [4]);
+        assert_eq!(c.unchanged, 1);
+        let name = |k: usize| (k == 1).then(|| "crate".to_string());
+        assert_eq!(
+            c.describe(&name),
+            "moved nodes[1] \"crate\"; reshaped nodes[2]; added nodes[3]; deleted nodes[4]; 1 unchanged"
+        );
+        let same = NodeChanges::between(&prev, &prev);
+        assert!(same.describe(&name).starts_with("no node's geometry"));
+    }
+
+    #[test]
+    fn a_sealed_file_checks_and_any_changed_byte_does_not() {
+        // A stand-in GLB whose JSON holds an unsealed fingerprint.
+        let f = json!({"aobake": "x", "input": "0123456789abcdef", "integrity": UNSEALED});
+        let doc = json!({"asset": {"version": "2.0"}, "extensions": {"AOBAKE_lightmap": {"fingerprint": f}}});
+        let mut glb = crate::gltf::container::glb_bytes(&doc, &[1, 2, 3, 4]);
+        seal(&mut glb, &f);
+        let (json, _) = glb_chunks(&glb).unwrap();
+        let sealed: Value = serde_json::from_slice(json).unwrap();
+        let f = &sealed["extensions"]["AOBAKE_lightmap"]["fingerprint"];
+        let integrity = f["integrity"].as_str().unwrap();
+        assert_ne!(integrity, UNSEALED);
+        // The hash of the file with the zeros back in place.
+        let at = integrity_at(&glb, f).unwrap();
+        let mut zeros = glb.clone();
+        zeros[at..at + 16].copy_from_slice(UNSEALED.as_bytes());
+        assert_eq!(hex(hash64(&zeros)), integrity);
+        // A changed byte of the BIN chunk changes the hash.
+        let last = zeros.len() - 1;
+        zeros[last] ^= 1;
+        assert_ne!(hex(hash64(&zeros)), integrity);
+    }
 }

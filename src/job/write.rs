@@ -33,7 +33,7 @@ pub fn write(
     timer: &mut StageTimer,
 ) -> Result<(Vec<u8>, Vec<String>)> {
     timer.restart();
-    let fingerprint = traced.map(|(h, device)| Fingerprint::new(h, s, device));
+    let fingerprint = traced.map(|(h, device)| Fingerprint::new(h, s, device, scene).to_json());
     let options = OutputOptions {
         record: BakeRecord {
             method: s.method.name().to_string(),
@@ -47,7 +47,7 @@ pub fn write(
             width: level.atlas.width,
             height: level.atlas.height,
             filter: s.filter,
-            fingerprint: fingerprint.as_ref().map(Fingerprint::to_json),
+            fingerprint: fingerprint.clone(),
         },
         occlusion: s.occlusion,
         visibility_meshes: level.visibility_meshes.clone(),
