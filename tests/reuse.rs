@@ -209,6 +209,9 @@ fn every_prev_that_is_not_this_bakes_output_gets_a_reason_and_a_full_bake() {
         why.contains("moved nodes[2] \"small.box\"; 3 unchanged"),
         "{why}"
     );
+    let nodes = &report["reuse"]["nodes"];
+    assert_eq!(nodes["moved"], serde_json::json!([2]), "{nodes}");
+    assert_eq!(nodes["unchanged"], 3, "{nodes}");
     assert_eq!(
         std::fs::read(&out).unwrap(),
         std::fs::read(&moved_fresh).unwrap()

@@ -329,7 +329,7 @@ pub fn bake_reusing(
             Error::option_conflict("reuse", format!("cannot read {}: {e}", prev.display()))
         })?;
         let decision = match rebake {
-            Rebake::All => Decision::Full("--rebake all".into()),
+            Rebake::All => Decision::Full("--rebake all".into(), None),
             Rebake::Changed => reuse::decide(
                 &prev_bytes,
                 &reuse::Wanted {
@@ -345,7 +345,7 @@ pub fn bake_reusing(
             ),
         };
         timer.lap("reuse check");
-        let full_bake = match decision {
+        let (full_bake, nodes) = match decision {
             Decision::Reuse => {
                 file::write_atomic(output, &prev_bytes)?;
                 timer.lap("save");
@@ -358,12 +358,13 @@ pub fn bake_reusing(
                     timer,
                 ));
             }
-            Decision::Full(why) => why,
+            Decision::Full(why, nodes) => (why, nodes),
         };
         reused = Some(ReuseReport {
             prev: prev.display().to_string(),
             reused: false,
             full_bake: Some(full_bake),
+            nodes,
             texels_baked: 0,
             texels_dirty: 0,
             pages_reused: 0,

@@ -477,6 +477,7 @@ pub(crate) fn reused_report(
             prev: prev.display().to_string(),
             reused: true,
             full_bake: None,
+            nodes: None,
             texels_baked: 0,
             texels_dirty: 0,
             pages_reused: pages.len(),

@@ -178,8 +178,9 @@ fn integrity_at(glb: &[u8], f: &Value) -> Option<usize> {
 pub enum Decision {
     /// PREV is this bake's output, byte for byte.
     Reuse,
-    /// Bake everything; why PREV could not be used, in one line.
-    Full(String),
+    /// Bake everything; why PREV could not be used, in one line, and
+    /// which nodes changed when the input did.
+    Full(String, Option<NodeChanges>),
 }
 
 /// What the new bake is: its input's [`input_hash`], its settings, and
@@ -199,13 +200,38 @@ pub struct Wanted<'a> {
 /// Decides whether PREV (`prev`, its bytes) is the output the new bake
 /// would write (see the module doc).
 pub fn decide(prev: &[u8], want: &Wanted) -> Decision {
-    match check(prev, want) {
+    match check_file(prev, want) {
         Ok(()) => Decision::Reuse,
-        Err(why) => Decision::Full(why),
+        Err(Why::Text(why)) => Decision::Full(why, None),
+        Err(Why::Input(changes)) => Decision::Full(
+            format!(
+                "the input differs from the one PREV was baked from: {} (only an unchanged input is reused so far)",
+                changes.describe(want.node_name)
+            ),
+            Some(changes),
+        ),
     }
 }
 
-fn check(prev: &[u8], want: &Wanted) -> Result<(), String> {
+/// Why a check failed: a line, or the input's node changes.
+enum Why {
+    Text(String),
+    Input(NodeChanges),
+}
+
+impl From<String> for Why {
+    fn from(s: String) -> Why {
+        Why::Text(s)
+    }
+}
+
+impl From<&str> for Why {
+    fn from(s: &str) -> Why {
+        Why::Text(s.to_string())
+    }
+}
+
+fn check_file(prev: &[u8], want: &Wanted) -> Result<(), Why> {
     let (json, _) =
         glb_chunks(prev).map_err(|e| format!("PREV is not a GLB aobake can read ({e})"))?;
     let json: Value =
@@ -230,9 +256,9 @@ fn check(prev: &[u8], want: &Wanted) -> Result<(), String> {
             "gpu" => Device::Gpu,
             "cpu" => Device::Cpu,
             other => {
-                return Err(format!(
-                    "PREV's fingerprint names an unknown device \"{other}\""
-                ));
+                return Err(
+                    format!("PREV's fingerprint names an unknown device \"{other}\"").into(),
+                );
             }
         },
         nodes: read_nodes(f).ok_or("PREV's fingerprint has no readable nodes")?,
@@ -253,26 +279,29 @@ fn check(prev: &[u8], want: &Wanted) -> Result<(), String> {
         return Err(format!(
             "PREV was baked by aobake {}, this is {this}",
             recorded.aobake
-        ));
+        )
+        .into());
     }
     if recorded.settings != hex(settings_hash(want.settings)) {
         return Err(format!(
             "PREV was baked with other settings ({})",
             differing(ext, want.settings)
-        ));
+        )
+        .into());
     }
     if want.settings.device != Device::Auto && want.settings.device != recorded.device {
         return Err(format!(
             "PREV was traced on the {}, this bake asks for the {}",
             device_name(recorded.device).to_uppercase(),
             device_name(want.settings.device).to_uppercase()
-        ));
+        )
+        .into());
     }
     if recorded.input != hex(want.input) {
-        return Err(format!(
-            "the input differs from the one PREV was baked from: {} (only an unchanged input is reused so far)",
-            NodeChanges::between(&recorded.nodes, &want.nodes).describe(want.node_name)
-        ));
+        return Err(Why::Input(NodeChanges::between(
+            &recorded.nodes,
+            &want.nodes,
+        )));
     }
     if want.moved_uris {
         return Err(
@@ -345,7 +374,7 @@ fn read_nodes(f: &Value) -> Option<Vec<NodePrint>> {
 
 /// Which nodes an edit touched, by node index: between PREV's prints and
 /// the input's.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct NodeChanges {
     /// Same shape, another transform.
     pub moved: Vec<usize>,
@@ -422,6 +451,10 @@ pub struct ReuseReport {
     /// Why every texel was baked, when they were.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub full_bake: Option<String>,
+    /// With another input: the nodes that moved, changed shape, came or
+    /// went.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nodes: Option<NodeChanges>,
     /// Texels this run baked (every texel of the atlas on a full bake).
     pub texels_baked: usize,
     /// Texels an edit could change: every texel on a full bake, none
