@@ -112,10 +112,10 @@ pub struct Job<'a> {
     pub timer: StageTimer,
     /// What [`Job::write`]'s pass over the seams across pages did.
     pub across: Option<AcrossReport>,
-    /// The input's hash ([`reuse::input_hash`]) and the device the rays
-    /// were traced on, when the input's bytes are known: the output then
-    /// carries its fingerprint, for a later `--reuse`.
-    pub traced: Option<(u64, Device)>,
+    /// The input's hash ([`reuse::input_hash`]), when the input's bytes
+    /// are known: the output then carries its fingerprint, for a later
+    /// `--reuse`.
+    pub input_hash: Option<u64>,
 }
 
 impl<'a> Job<'a> {
@@ -132,7 +132,7 @@ impl<'a> Job<'a> {
             run,
             timer,
             across: None,
-            traced: None,
+            input_hash: None,
         }
     }
 
@@ -216,7 +216,7 @@ impl<'a> Job<'a> {
             &encoded,
             self.settings,
             output_dir,
-            self.traced,
+            self.input_hash,
             &mut self.timer,
         )?;
         if let Some(failure) = level.tracer.gpu_failure() {
@@ -372,7 +372,7 @@ pub fn bake_reusing(
     }
     let mut job = Job::new(&scene, s, run, timer);
     let level = Level::build(&scene, s, run, &mut job.timer)?;
-    job.traced = Some((input_hash, level.backend.device()));
+    job.input_hash = Some(input_hash);
     let all: Vec<u32> = (0..level.page_count()).collect();
     let done = job.pages(&level, &all, &mut |_, _, _| {})?;
     let encoded: Vec<&Encoded> = done.iter().map(|d| &d.encoded).collect();

@@ -43,8 +43,6 @@ pub struct Fingerprint {
     pub input: String,
     /// [`settings_hash`] of the settings, hex.
     pub settings: String,
-    /// Where the rays were traced: `cpu` or `gpu`.
-    pub device: Device,
     /// Every node that places a triangle primitive ([`node_prints`]).
     pub nodes: Vec<NodePrint>,
 }
@@ -101,13 +99,12 @@ fn shape_hash(g: &PrimitiveGeometry) -> u64 {
 
 impl Fingerprint {
     /// The fingerprint of a bake of an input with [`input_hash`] `input`
-    /// under `s`, traced on `device`.
-    pub fn new(input: u64, s: &BakeSettings, device: Device, scene: &Scene) -> Fingerprint {
+    /// under `s`.
+    pub fn new(input: u64, s: &BakeSettings, scene: &Scene) -> Fingerprint {
         Fingerprint {
             aobake: env!("CARGO_PKG_VERSION").to_string(),
             input: hex(input),
             settings: hex(settings_hash(s)),
-            device,
             nodes: node_prints(scene),
         }
     }
@@ -118,7 +115,6 @@ impl Fingerprint {
             "aobake": self.aobake,
             "input": self.input,
             "settings": self.settings,
-            "device": device_name(self.device),
             "nodes": self.nodes.iter().map(|n| json!([n.node, n.shape, n.transform])).collect::<Vec<_>>(),
             "integrity": UNSEALED,
         })
@@ -129,13 +125,6 @@ fn hex(h: u64) -> String {
     format!("{h:016x}")
 }
 
-fn device_name(d: Device) -> &'static str {
-    match d {
-        Device::Gpu => "gpu",
-        _ => "cpu",
-    }
-}
-
 /// The input as a bake reads it: the file's bytes, then every buffer it
 /// resolves (a `.gltf`'s external `.bin` files among them). Images are not
 /// read by a bake, only their URIs, which are in the file.
@@ -144,7 +133,9 @@ pub fn input_hash(file_bytes: &[u8], doc: &Document) -> u64 {
 }
 
 /// The settings as they decide the output's bytes: their JSON, with the
-/// device left out (recorded apart, as the device it resolved to).
+/// device left out: a GPU's answers are the CPU's (to the bit on a
+/// software adapter, within the agreement `tests/gpu.rs` checks on
+/// hardware), so a bake traced on either is the input's bake.
 pub fn settings_hash(s: &BakeSettings) -> u64 {
     let mut s = s.clone();
     s.device = Device::Auto;
@@ -252,15 +243,6 @@ fn check_file(prev: &[u8], want: &Wanted) -> Result<(), Why> {
         aobake: field("aobake")?.to_string(),
         input: field("input")?.to_string(),
         settings: field("settings")?.to_string(),
-        device: match field("device")? {
-            "gpu" => Device::Gpu,
-            "cpu" => Device::Cpu,
-            other => {
-                return Err(
-                    format!("PREV's fingerprint names an unknown device \"{other}\"").into(),
-                );
-            }
-        },
         nodes: read_nodes(f).ok_or("PREV's fingerprint has no readable nodes")?,
     };
     // The integrity first: an edited file's other fields prove nothing.
@@ -286,14 +268,6 @@ fn check_file(prev: &[u8], want: &Wanted) -> Result<(), Why> {
         return Err(format!(
             "PREV was baked with other settings ({})",
             differing(ext, want.settings)
-        )
-        .into());
-    }
-    if want.settings.device != Device::Auto && want.settings.device != recorded.device {
-        return Err(format!(
-            "PREV was traced on the {}, this bake asks for the {}",
-            device_name(recorded.device).to_uppercase(),
-            device_name(want.settings.device).to_uppercase()
         )
         .into());
     }

@@ -121,12 +121,8 @@ pub fn merge(output: &Path) -> Result<Merged> {
     let mut on_cpu = settings.clone();
     on_cpu.device = Device::Cpu;
     let mut job = Job::new(&scene, &on_cpu, &run, StageTimer::new());
-    // The fingerprint a bake in one process writes: the device the shards
-    // traced on, as they recorded it.
-    job.traced = Some((
-        super::reuse::input_hash(&bytes, &scene.doc),
-        settings.device,
-    ));
+    // The fingerprint a bake in one process writes.
+    job.input_hash = Some(super::reuse::input_hash(&bytes, &scene.doc));
     let level = job.level()?;
     if level.page_count() != page_count {
         return Err(set.refuse(format!(

@@ -13,27 +13,26 @@ use crate::encode::Encoded;
 use crate::error::Result;
 use crate::gltf::Scene;
 use crate::gltf::write::{self, BakeRecord, OutputOptions};
-use crate::job::settings::{BakeSettings, Device, Method, UvSource};
+use crate::job::settings::{BakeSettings, Method, UvSource};
 use crate::stage::StageTimer;
 use std::path::Path;
 
 /// The output GLB of a level from every page's encoded images (`pages[k]`
 /// is page k's), with the scene's warnings and the writer's. `output_dir`:
 /// where the GLB will be written, so external URIs resolve from there.
-/// `traced`: the input's hash ([`reuse::input_hash`]) and the device its
-/// rays were traced on, when known: the output then carries its sealed
-/// [`Fingerprint`].
+/// `input_hash`: the input's ([`reuse::input_hash`]), when known: the
+/// output then carries its sealed [`Fingerprint`].
 pub fn write(
     scene: &Scene,
     level: &Level,
     pages: &[&Encoded],
     s: &BakeSettings,
     output_dir: Option<&Path>,
-    traced: Option<(u64, Device)>,
+    input_hash: Option<u64>,
     timer: &mut StageTimer,
 ) -> Result<(Vec<u8>, Vec<String>)> {
     timer.restart();
-    let fingerprint = traced.map(|(h, device)| Fingerprint::new(h, s, device, scene).to_json());
+    let fingerprint = input_hash.map(|h| Fingerprint::new(h, s, scene).to_json());
     let options = OutputOptions {
         record: BakeRecord {
             method: s.method.name().to_string(),
