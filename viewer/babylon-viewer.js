@@ -168,9 +168,10 @@ const status = () => barStatus(lightmaps);
 /** [r, g, b, a] of a float render of the baked meshes with debug output
  * `debug` at each pixel [x, y]; a = 0 off them (the importer's probe). */
 async function probePixels(debug, pixels) {
-  const out = await lightmaps.probe(scene, camera, debug, pixels, [engine.getRenderWidth(), engine.getRenderHeight()]);
-  render();
-  return out;
+  // The probe draws into its own target and restores what it changed: the
+  // canvas's frame stands (another frame of a large model takes a
+  // software rasterizer seconds).
+  return lightmaps.probe(scene, camera, debug, pixels, [engine.getRenderWidth(), engine.getRenderHeight()]);
 }
 
 camera.onViewMatrixChangedObservable.add(() => {

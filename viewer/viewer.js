@@ -170,7 +170,8 @@ function probePixels(debug, pixels) {
   scene.background = background;
   for (const o of hidden) o.visible = true;
   target.dispose();
-  render();
+  // The canvas's frame stands: the probe drew into its own target and
+  // restored what it changed.
   return pixels.map(([x, y]) => {
     const o = ((h - 1 - y) * w + x) * 4;
     return [data[o], data[o + 1], data[o + 2], data[o + 3]];

@@ -253,12 +253,10 @@ export class AobakeLightmaps {
     const wait = (ms) => new Promise((r) => setTimeout(r, ms));
     await new Promise((ok) => scene.executeWhenReady(ok));
     for (let k = 0; k < 200 && !rtt.isReadyForRendering(); k++) await wait(20);
-    // Shaders compile asynchronously: render until every material is ready.
-    for (let k = 0; k < 200; k++) {
-      rtt.render();
-      if (rtt.renderList.every((m) => m.material.isReady(m))) break;
-      await wait(50);
-    }
+    // Shaders compile asynchronously (isReady starts them): wait until
+    // every material is ready, then render once (a software rasterizer
+    // takes seconds a frame on a large model).
+    for (let k = 0; k < 200 && !rtt.renderList.every((m) => m.material.isReady(m)); k++) await wait(50);
     rtt.render();
     const data = await rtt.readPixels();
     this.setDebug('none');

@@ -350,14 +350,23 @@ pub fn run_browser_tests(
     if !tools_present("the browser tests", &missing) {
         return;
     }
-    let out = std::process::Command::new("node")
-        .args(["--test", "--test-reporter=tap"])
+    let mut node = std::process::Command::new("node");
+    node.args(["--test", "--test-reporter=tap"])
         .args(args)
         .current_dir(dir)
         .env("AOBAKE_BIN", aobake)
-        .env("CHROMIUM", &chromium)
-        .output()
-        .expect("node runs");
+        .env("CHROMIUM", &chromium);
+    // The browser test files (viewer, Babylon.js, both engines) share their
+    // bakes: the same binary, input and arguments give the same bytes, and
+    // the helmet's alone took minutes a file. (Integration tests have a
+    // target temporary folder; the probes that share this module do not.)
+    if let Some(tmp) = option_env!("CARGO_TARGET_TMPDIR") {
+        node.env(
+            "AOBAKE_BAKE_CACHE",
+            std::path::Path::new(tmp).join("browser-bakes"),
+        );
+    }
+    let out = node.output().expect("node runs");
     let tap = String::from_utf8_lossy(&out.stdout);
     // The measured differences, for the log (cargo test --nocapture).
     for line in tap.lines().filter(|l| l.starts_with("# \\#")) {

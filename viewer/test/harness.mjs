@@ -4,10 +4,14 @@
 //
 // Environment: AOBAKE_BIN (the aobake binary; default the release build),
 // CHROMIUM (default /usr/bin/chromium), AOBAKE_SHARED (the shared test
-// assets; default ../shared/assets beside the repository).
+// assets; default ../shared/assets beside the repository),
+// AOBAKE_BAKE_CACHE (a folder where bakes are kept by binary, input and
+// arguments, so that test files asking for the same bake share one; a bake
+// is deterministic, so a kept one is the bytes a new one would write).
 
 import { spawn, execFileSync } from 'node:child_process';
-import { mkdtempSync, writeFileSync } from 'node:fs';
+import { createHash } from 'node:crypto';
+import { copyFileSync, existsSync, mkdirSync, mkdtempSync, readFileSync, renameSync, writeFileSync } from 'node:fs';
 import { writeGlb } from './decode.mjs';
 import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
@@ -26,9 +30,34 @@ export function tempDir() {
   return mkdtempSync(join(tmpdir(), 'aobake-viewer-'));
 }
 
-/** Bakes `input` into `output` with extra CLI arguments. */
+let binaryDigest;
+
+/**
+ * Bakes `input` into `output` with extra CLI arguments (with
+ * AOBAKE_BAKE_CACHE set: a copy of the same binary's bake of the same
+ * input bytes with the same arguments when there is one).
+ */
 export function bake(input, output, args = []) {
-  execFileSync(aobake, [input, output, '-q', ...args], { stdio: 'inherit' });
+  const cache = process.env.AOBAKE_BAKE_CACHE;
+  if (!cache) {
+    execFileSync(aobake, [input, output, '-q', ...args], { stdio: 'inherit' });
+    return output;
+  }
+  binaryDigest ??= createHash('sha256').update(readFileSync(aobake)).digest();
+  const key = createHash('sha256').update(binaryDigest).update(readFileSync(input))
+    .update(JSON.stringify(args)).digest('hex').slice(0, 32);
+  const kept = join(cache, `${key}.glb`);
+  if (!existsSync(kept)) {
+    mkdirSync(cache, { recursive: true });
+    execFileSync(aobake, [input, output, '-q', ...args], { stdio: 'inherit' });
+    // Kept under a temporary name first: a run killed midway leaves no
+    // half-written file under the key.
+    const part = `${kept}.${process.pid}.part`;
+    copyFileSync(output, part);
+    renameSync(part, kept);
+    return output;
+  }
+  copyFileSync(kept, output);
   return output;
 }
 
