@@ -358,7 +358,7 @@ pub fn run_browser_tests(
         .env("CHROMIUM", &chromium);
     // The browser test files (viewer, Babylon.js, both engines) share their
     // bakes: the same binary, input and arguments give the same bytes, and
-    // the helmet's alone took minutes a file. (Integration tests have a
+    // each file bakes the flight helmet. (Integration tests have a
     // target temporary folder; the probes that share this module do not.)
     if let Some(tmp) = option_env!("CARGO_TARGET_TMPDIR") {
         node.env(

@@ -39,25 +39,26 @@ let binaryDigest;
  */
 export function bake(input, output, args = []) {
   const cache = process.env.AOBAKE_BAKE_CACHE;
-  if (!cache) {
-    execFileSync(aobake, [input, output, '-q', ...args], { stdio: 'inherit' });
-    return output;
+  let kept = null;
+  if (cache) {
+    binaryDigest ??= createHash('sha256').update(readFileSync(aobake)).digest();
+    const key = createHash('sha256').update(binaryDigest).update(readFileSync(input))
+      .update(JSON.stringify(args)).digest('hex').slice(0, 32);
+    kept = join(cache, `${key}.glb`);
+    if (existsSync(kept)) {
+      copyFileSync(kept, output);
+      return output;
+    }
   }
-  binaryDigest ??= createHash('sha256').update(readFileSync(aobake)).digest();
-  const key = createHash('sha256').update(binaryDigest).update(readFileSync(input))
-    .update(JSON.stringify(args)).digest('hex').slice(0, 32);
-  const kept = join(cache, `${key}.glb`);
-  if (!existsSync(kept)) {
-    mkdirSync(cache, { recursive: true });
-    execFileSync(aobake, [input, output, '-q', ...args], { stdio: 'inherit' });
+  execFileSync(aobake, [input, output, '-q', ...args], { stdio: 'inherit' });
+  if (kept) {
     // Kept under a temporary name first: a run killed midway leaves no
     // half-written file under the key.
+    mkdirSync(cache, { recursive: true });
     const part = `${kept}.${process.pid}.part`;
     copyFileSync(output, part);
     renameSync(part, kept);
-    return output;
   }
-  copyFileSync(kept, output);
   return output;
 }
 
