@@ -9,6 +9,7 @@
 //! way into 4 RGBA8 PNGs (3 at order 2) with its own scale and offset.
 
 use crate::atlas::Receivers;
+use crate::bake::adaptive::Scale;
 use crate::error::{Error, Result};
 use crate::lightmap::Lightmap;
 use crate::sh::{SH_COUNT, VIS_COUNT};
@@ -24,6 +25,20 @@ pub struct Encoded {
     pub sh_scale: [f32; SH_COUNT],
     pub sh_offset: [f32; SH_COUNT],
     pub visibility: Option<EncodedVisibility>,
+    /// The adaptive allocation's page scale the page was baked with (not
+    /// an image: recorded in the fingerprint for a later `--reuse`).
+    pub scale: Option<Scale>,
+}
+
+/// Each channel's scale and offset, taken from an earlier bake of the
+/// page (`--reuse`) instead of the page's own range: a value outside them
+/// is written clamped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ranges {
+    pub sh_scale: [f32; SH_COUNT],
+    pub sh_offset: [f32; SH_COUNT],
+    /// The visibility layer's, when it has one.
+    pub visibility: Option<(Vec<f32>, Vec<f32>)>,
 }
 
 /// The visibility layer's images: `png[k]` holds v_{4k}..v_{4k+3} in
@@ -121,8 +136,9 @@ pub(crate) fn sh_range<const N: usize>(sh: &[[f32; N]]) -> ([f32; N], [f32; N]) 
 fn rgba_channels<const N: usize>(
     values: &[[f32; N]],
     count: usize,
+    range: Option<([f32; N], [f32; N])>,
 ) -> (Vec<Vec<u8>>, [f32; N], [f32; N]) {
-    let (scale, offset) = sh_range(values);
+    let (scale, offset) = range.unwrap_or_else(|| sh_range(values));
     let channel = |c: &[f32; N], i: usize| to_byte(c[i], scale[i], offset[i]);
     let pages = (0..count.div_ceil(4))
         .into_par_iter()
@@ -150,15 +166,29 @@ fn rgba_channels<const N: usize>(
 /// Encodes the lightmap per the output contract; the visibility layer, if
 /// any, to `visibility_order` (2: 9 coefficients, 3: 16).
 pub fn encode(lm: &Lightmap, visibility_order: u32) -> Result<Encoded> {
+    encode_in(lm, visibility_order, None)
+}
+
+/// [`encode`], each channel on `ranges` when given (a layer whose carried
+/// range does not have its coefficient count gets its own).
+pub fn encode_in(lm: &Lightmap, visibility_order: u32, ranges: Option<&Ranges>) -> Result<Encoded> {
     let (w, h) = (lm.width, lm.height);
     let count = ((visibility_order + 1) * (visibility_order + 1)) as usize;
+    let count = count.min(VIS_COUNT);
     // Channels first, then every image compressed on a thread of its own.
     let ao: Vec<u8> = lm.ao.par_iter().map(|&a| to_u8(a)).collect();
-    let (sh, sh_scale, sh_offset) = rgba_channels(&lm.sh, SH_COUNT);
+    let sh_range = ranges.map(|r| (r.sh_scale, r.sh_offset));
+    let (sh, sh_scale, sh_offset) = rgba_channels(&lm.sh, SH_COUNT, sh_range);
+    let layer_range = (ranges.and_then(|r| r.visibility.as_ref()))
+        .filter(|(scale, offset)| scale.len() == count && offset.len() == count)
+        .map(|(scale, offset)| {
+            let pad = |v: &[f32]| std::array::from_fn(|i| v.get(i).copied().unwrap_or(0.0));
+            (pad(scale), pad(offset))
+        });
     let layer = lm
         .visibility
         .as_ref()
-        .map(|v| rgba_channels(v, count.min(VIS_COUNT)));
+        .map(|v| rgba_channels(v, count, layer_range));
     let mut images: Vec<(&[u8], image::ExtendedColorType)> =
         vec![(&ao, image::ExtendedColorType::L8)];
     images.extend(
@@ -189,6 +219,7 @@ pub fn encode(lm: &Lightmap, visibility_order: u32) -> Result<Encoded> {
         sh_scale,
         sh_offset,
         visibility,
+        scale: None,
     })
 }
 

@@ -37,6 +37,11 @@ pub struct ReceiverMesh {
     pub instance: usize,
     /// Positions in bake space.
     pub positions: Vec<[f32; 3]>,
+    /// The same without the placement's translation (its linear part
+    /// applied to the mesh's positions, over the bake unit): what the
+    /// unwrap reads, so that a mesh moved by a translation unwraps into
+    /// the same charts to the bit (`--reuse`).
+    pub shape: Vec<[f32; 3]>,
     /// Unit world-space normals, if the primitive has them.
     pub normals: Option<Vec<[f32; 3]>>,
     /// Triangle list indexing `positions` (same as the primitive's).

@@ -258,11 +258,14 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
                 );
                 return write_report(cli, &report);
             }
-            Some(r) => {
-                if let Some(why) = &r.full_bake {
-                    eprintln!("aobake: full bake, {} not reused: {why}", r.prev);
-                }
-            }
+            Some(r) => match &r.full_bake {
+                Some(why) if r.carried => eprintln!(
+                    "aobake: every texel baked on {}'s atlas, allocation and ranges ({why}; rebaking only what an edit changes is not built yet)",
+                    r.prev
+                ),
+                Some(why) => eprintln!("aobake: full bake, {} not reused: {why}", r.prev),
+                None => {}
+            },
             None => {}
         }
         let pages = report.pages.iter().filter(|p| p.baked).count();

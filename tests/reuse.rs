@@ -2,7 +2,11 @@
 //! byte, and that is what a full bake writes; every PREV that is not this
 //! bake's output (other settings, another input, an edited, truncated or
 //! foreign file) gets a line saying why and a full bake, whose bytes are a
-//! fresh bake's; a PREV that cannot be read, or that is OUT, is an error.
+//! fresh bake's; an edited input on PREV's atlas carries PREV's page-wide
+//! numbers, so texels out of the edit's reach keep PREV's bytes; a PREV
+//! that cannot be read, or that is OUT, is an error.
+
+mod common;
 
 use aobake::gltf::container::{glb_bytes, glb_chunks};
 use serde_json::Value;
@@ -121,8 +125,6 @@ fn every_prev_that_is_not_this_bakes_output_gets_a_reason_and_a_full_bake() {
         }),
     )
     .unwrap();
-    let moved_fresh = p("moved_fresh.glb");
-    bake(&moved_input, &moved_fresh, &[]);
 
     let mut seed = edited(&prev_bytes, |j| {
         j["extensions"]["AOBAKE_lightmap"]["seed"] = serde_json::json!(7);
@@ -199,23 +201,207 @@ fn every_prev_that_is_not_this_bakes_output_gets_a_reason_and_a_full_bake() {
         "{report}"
     );
 
-    // Another input: the edited scene's own bake, not PREV's.
+    // Another input on PREV's atlas: PREV's bake space, atlas,
+    // allocation and ranges carried, every texel baked; the same bytes
+    // with `--rebake all`.
     let out = p("moved.glb");
-    let (_, report) = bake(&moved_input, &out, &["--reuse", prev.to_str().unwrap()]);
-    let why = report["reuse"]["full_bake"].as_str().unwrap();
+    let (err, report) = bake(&moved_input, &out, &["--reuse", prev.to_str().unwrap()]);
+    let r = &report["reuse"];
+    assert_eq!(r["carried"], true, "{r}");
+    let why = r["full_bake"].as_str().unwrap();
     assert!(why.contains("input differs"), "{why}");
     assert!(
         why.contains("moved nodes[2] \"small.box\"; 3 unchanged"),
         "{why}"
     );
-    let nodes = &report["reuse"]["nodes"];
+    assert!(err.contains("atlas, allocation and ranges"), "{err}");
+    let nodes = &r["nodes"];
     assert_eq!(nodes["moved"], serde_json::json!([2]), "{nodes}");
     assert_eq!(nodes["unchanged"], 3, "{nodes}");
-    assert_eq!(
-        std::fs::read(&out).unwrap(),
-        std::fs::read(&moved_fresh).unwrap()
+    let dirty = r["texels_dirty"].as_u64().unwrap();
+    assert!(
+        dirty > 0 && dirty <= r["texels_baked"].as_u64().unwrap(),
+        "{r}"
     );
+    let all = p("moved_all.glb");
+    bake(
+        &moved_input,
+        &all,
+        &["--reuse", prev.to_str().unwrap(), "--rebake", "all"],
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&all).unwrap());
     assert_ne!(std::fs::read(&out).unwrap(), prev_bytes);
+}
+
+/// A 10 x 10 floor (node 0) with a cube of side 0.5 on it (node 1) at
+/// `x`.
+fn floor_and_cube(x: f32) -> Vec<u8> {
+    let floor = common::quad([0.0; 3], [5.0, 0.0, 0.0], [0.0, 0.0, -5.0], true);
+    let a = 0.25;
+    let faces = [
+        ([a, 0.0, 0.0], [0.0, 0.0, -a], [0.0, a, 0.0]),
+        ([-a, 0.0, 0.0], [0.0, 0.0, a], [0.0, a, 0.0]),
+        ([0.0, 0.0, a], [a, 0.0, 0.0], [0.0, a, 0.0]),
+        ([0.0, 0.0, -a], [-a, 0.0, 0.0], [0.0, a, 0.0]),
+        ([0.0, a, 0.0], [a, 0.0, 0.0], [0.0, 0.0, -a]),
+    ];
+    let cube = common::merge(&faces.map(|(o, u, v)| common::quad(o, u, v, true)));
+    common::glb(
+        &[floor, cube],
+        vec![
+            serde_json::json!({"mesh": 0, "name": "floor"}),
+            serde_json::json!({"mesh": 1, "name": "cube", "translation": [x, a, 0.0]}),
+        ],
+    )
+}
+
+/// A float accessor's values, `dims` per element.
+fn floats(json: &Value, bin: &[u8], accessor: usize) -> Vec<f32> {
+    let a = &json["accessors"][accessor];
+    assert_eq!(a["componentType"], 5126, "{a}");
+    let view = &json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
+    let at = |v: &Value| v.as_u64().unwrap_or(0) as usize;
+    let start = at(&view["byteOffset"]) + at(&a["byteOffset"]);
+    let dims = match a["type"].as_str().unwrap() {
+        "VEC2" => 2,
+        "VEC3" => 3,
+        t => panic!("{t}"),
+    };
+    let stride = view["byteStride"].as_u64().unwrap_or(4 * dims as u64) as usize;
+    (0..at(&a["count"]))
+        .flat_map(|i| (0..dims).map(move |k| start + i * stride + 4 * k))
+        .map(|o| f32::from_le_bytes(bin[o..o + 4].try_into().unwrap()))
+        .collect()
+}
+
+/// Every channel of the output's page-0 images (AO, then the SH's RGBA),
+/// per texel, and the page's size.
+fn texels(json: &Value, bin: &[u8]) -> (u32, u32, Vec<Vec<u8>>) {
+    let ext = json["meshes"][0]["primitives"][0]["extensions"]["AOBAKE_lightmap"].clone();
+    let image = |texture: &Value| {
+        let t = &json["textures"][texture["index"].as_u64().unwrap() as usize];
+        let im = &json["images"][t["source"].as_u64().unwrap() as usize];
+        let view = &json["bufferViews"][im["bufferView"].as_u64().unwrap() as usize];
+        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let len = view["byteLength"].as_u64().unwrap() as usize;
+        image::load_from_memory(&bin[start..start + len]).unwrap()
+    };
+    let ao = image(&ext["occlusion"]).into_luma8();
+    let (w, h) = ao.dimensions();
+    let mut per_texel: Vec<Vec<u8>> = ao.into_raw().into_iter().map(|v| vec![v]).collect();
+    for sh in ext["sh"].as_array().unwrap() {
+        for (t, px) in image(sh).into_rgba8().into_raw().chunks(4).enumerate() {
+            per_texel[t].extend_from_slice(px);
+        }
+    }
+    (w, h, per_texel)
+}
+
+#[test]
+fn an_edit_on_prevs_atlas_changes_only_the_texels_within_reach_of_it() {
+    // The cube moved 0.3 along x: with PREV's globals carried, the floor's
+    // texels farther than maxDistance (1) from the cube's box before and
+    // after the move keep PREV's bytes; the filter, the border fit, the
+    // gutters and the seams' solve may carry a change a few texels
+    // further (REACH_TEXELS).
+    const REACH_TEXELS: f32 = 4.0;
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name);
+    let (before, after) = (p("before.glb"), p("after.glb"));
+    std::fs::write(&before, floor_and_cube(-3.0)).unwrap();
+    std::fs::write(&after, floor_and_cube(-2.7)).unwrap();
+    let prev = p("prev.glb");
+    let args = ["--max-distance", "1.0"];
+    bake(&before, &prev, &args);
+    let out = p("out.glb");
+    let (_, report) = bake(
+        &after,
+        &out,
+        &["--max-distance", "1.0", "--reuse", prev.to_str().unwrap()],
+    );
+    assert_eq!(report["reuse"]["carried"], true, "{report}");
+    let (pj, pb) = common::split(&std::fs::read(&prev).unwrap());
+    let (oj, ob) = common::split(&std::fs::read(&out).unwrap());
+    let (w, h, old) = texels(&pj, &pb);
+    let (_, _, new) = texels(&oj, &ob);
+    // The floor's lightmap UVs and positions, as the output writes them.
+    let prim = &oj["meshes"][0]["primitives"][0];
+    let set = prim["extensions"]["AOBAKE_lightmap"]["texCoord"]
+        .as_u64()
+        .unwrap();
+    let accessor = |name: &str| prim["attributes"][name].as_u64().unwrap() as usize;
+    let uv = floats(&oj, &ob, accessor(&format!("TEXCOORD_{set}")));
+    let pos = floats(&oj, &ob, accessor("POSITION"));
+    let idx: Vec<usize> = {
+        let a = &oj["accessors"][prim["indices"].as_u64().unwrap() as usize];
+        let view = &oj["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
+        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
+            + a["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let n = a["count"].as_u64().unwrap() as usize;
+        match a["componentType"].as_u64().unwrap() {
+            5125 => (0..n)
+                .map(|i| {
+                    u32::from_le_bytes(ob[start + 4 * i..start + 4 * i + 4].try_into().unwrap())
+                        as usize
+                })
+                .collect(),
+            5123 => (0..n)
+                .map(|i| {
+                    u16::from_le_bytes(ob[start + 2 * i..start + 2 * i + 2].try_into().unwrap())
+                        as usize
+                })
+                .collect(),
+            t => panic!("index type {t}"),
+        }
+    };
+    // World units per texel on the floor: its 10 units over its UV span.
+    let (umin, umax) = (uv.iter().step_by(2)).fold((1f32, 0f32), |(a, b), &u| (a.min(u), b.max(u)));
+    let texel = 10.0 / ((umax - umin) * w as f32);
+    // The cube's boxes before and after, and the distance from them.
+    let boxes = [-3.0f32, -2.7].map(|x| ([x - 0.25, 0.0, -0.25], [x + 0.25, 0.5, 0.25]));
+    let distance = |q: [f32; 3]| {
+        (boxes.iter())
+            .map(|(lo, hi)| {
+                let d: Vec<f32> = (0..3)
+                    .map(|k| (lo[k] - q[k]).max(q[k] - hi[k]).max(0.0))
+                    .collect();
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+            })
+            .fold(f32::INFINITY, f32::min)
+    };
+    let (mut far, mut near_changed) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let c = [(x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32];
+            // The floor point under the texel's centre, if any.
+            let world = idx.chunks(3).find_map(|t| {
+                let [a, b, d] = [t[0], t[1], t[2]].map(|i| [uv[2 * i], uv[2 * i + 1]]);
+                let det = (b[0] - a[0]) * (d[1] - a[1]) - (d[0] - a[0]) * (b[1] - a[1]);
+                let l1 = ((c[0] - a[0]) * (d[1] - a[1]) - (d[0] - a[0]) * (c[1] - a[1])) / det;
+                let l2 = ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])) / det;
+                let l0 = 1.0 - l1 - l2;
+                (l0 >= 0.0 && l1 >= 0.0 && l2 >= 0.0).then(|| {
+                    let v = |i: usize, k: usize| pos[3 * t[i] + k];
+                    [0, 1, 2].map(|k| l0 * v(0, k) + l1 * v(1, k) + l2 * v(2, k))
+                })
+            });
+            let Some(q) = world else { continue };
+            let t = (y * w + x) as usize;
+            let d = distance(q);
+            if d > 1.0 + REACH_TEXELS * texel {
+                far += 1;
+                assert_eq!(
+                    old[t], new[t],
+                    "texel ({x}, {y}) at {q:?}, {d} from the cube"
+                );
+            } else if old[t] != new[t] {
+                near_changed += 1;
+            }
+        }
+    }
+    // Both sets are there: the check can fail either way.
+    assert!(far > 1000, "{far} floor texels out of reach");
+    assert!(near_changed > 50, "{near_changed} changed within reach");
 }
 
 #[test]

@@ -229,7 +229,7 @@ pub(crate) fn unwrap_with_progress(
         .enumerate()
         .map(|(k, m)| uvunwrap::MeshInput {
             scale: scales.map_or(1.0, |s| s[k]),
-            ..uvunwrap::MeshInput::new(&m.positions, &m.triangles)
+            ..uvunwrap::MeshInput::new(&m.shape, &m.triangles)
         })
         .collect();
     let opts = uvunwrap::Options {

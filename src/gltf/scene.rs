@@ -396,6 +396,12 @@ impl Scene {
 
     /// Maps every instance into bake space.
     pub fn bake_geometry(&self) -> Result<BakeGeometry> {
+        self.bake_geometry_in(None)
+    }
+
+    /// Maps every instance into bake space: `space` when given (an
+    /// earlier bake's, `--reuse`), else the scene's bounding box's.
+    pub fn bake_geometry_in(&self, space: Option<BakeSpace>) -> Result<BakeGeometry> {
         let (lo, hi) = self
             .world_bounds()
             .ok_or_else(|| Error::Empty("the scene has no triangles".into()))?;
@@ -405,10 +411,10 @@ impl Scene {
                 "the scene's triangles have no extent (bounding-box diagonal {diagonal})"
             )));
         }
-        let space = BakeSpace {
+        let space = space.unwrap_or(BakeSpace {
             center: (lo + hi) * 0.5,
             diagonal,
-        };
+        });
         let mut occluders = Vec::new();
         let mut occluder_single_sided = Vec::new();
         let mut receivers = Vec::new();
@@ -455,9 +461,16 @@ impl Scene {
                         })
                         .collect()
                 });
+            let shape = (g.positions.iter())
+                .map(|p| {
+                    let p = linear * DVec3::from(p.map(f64::from)) / space.diagonal;
+                    p.as_vec3().to_array()
+                })
+                .collect();
             receivers.push(ReceiverMesh {
                 instance: ii,
                 positions,
+                shape,
                 normals,
                 triangles: g.triangles.clone(),
                 mirrored: linear.determinant() < 0.0,

@@ -395,6 +395,7 @@ mod tests {
                 sh_scale: [0.0; SH_COUNT],
                 sh_offset: [0.0; SH_COUNT],
                 visibility: None,
+                scale: None,
             }
         };
         let size = PageSize {

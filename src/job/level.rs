@@ -11,7 +11,7 @@ use super::device::{self, Backend};
 use crate::atlas::{self, Atlas, AtlasSize, UnwrapOptions};
 use crate::bake::signal::{self, TexelBudget};
 use crate::error::{Error, Result};
-use crate::geometry::BakeGeometry;
+use crate::geometry::{BakeGeometry, BakeSpace};
 use crate::gltf::Scene;
 use crate::job::settings::{
     BakeSettings, DEFAULT_MAX_DISTANCE_FRACTION, MAX_BAKE_BYTES, Method, RunOptions, UvSource,
@@ -86,16 +86,19 @@ impl Level {
         timer: &mut StageTimer,
     ) -> Result<Level> {
         s.validate()?;
-        Level::build(scene, s, run, timer)
+        Level::build(scene, s, run, None, timer)
     }
 
     /// [`Level::new`] for settings validated already: [`crate::bake()`] and
     /// [`crate::job::bake_shard`] validate before they read the input, so a bad
     /// option fails before any I/O, and once.
+    /// `space`: the bake space to use instead of the scene's (an earlier
+    /// bake's, `--reuse`).
     pub(crate) fn build(
         scene: &Scene,
         s: &BakeSettings,
         run: &RunOptions,
+        space: Option<BakeSpace>,
         timer: &mut StageTimer,
     ) -> Result<Level> {
         if scene.baked_count() == 0 {
@@ -106,7 +109,7 @@ impl Level {
                 "every triangle mesh of the default scene is skinned, morphed or GPU-instanced (they only occlude)".into()
             }));
         }
-        let geometry = scene.bake_geometry()?;
+        let geometry = scene.bake_geometry_in(space)?;
         let diagonal = geometry.space.diagonal;
         let max_distance_world = s
             .max_distance

@@ -30,9 +30,11 @@
 //! - `report`: the `--report` JSON;
 //! - [`device`]: where the rays are traced (`--device`);
 //! - [`reuse`]: the output's fingerprint, and `--reuse PREV`;
+//! - [`carry`]: what a bake of an edited input takes from PREV;
 //! - [`shard`](mod@shard): sharded bakes and their merge.
 
 pub mod across;
+pub mod carry;
 pub mod device;
 pub(crate) mod level;
 pub(crate) mod page;
@@ -66,6 +68,7 @@ use crate::lightmap::BorderMode;
 use crate::lightmap::Lightmap;
 use crate::lightmap::border;
 use crate::stage::StageTimer;
+use carry::PageCarry;
 use reuse::Decision;
 use std::path::Path;
 
@@ -116,6 +119,13 @@ pub struct Job<'a> {
     /// are known: the output then carries its fingerprint, for a later
     /// `--reuse`.
     pub input_hash: Option<u64>,
+    /// Per page what this bake takes from PREV (`--reuse` of an edited
+    /// input on PREV's atlas, [`carry`]).
+    pub carry: Option<Vec<PageCarry>>,
+    /// With a carry: the changed nodes' world boxes before and after the
+    /// edit ([`reuse::NodeChanges::boxes`]), and the receivers they make
+    /// dirty so far ([`carry::dirty`]).
+    pub edit: Option<(Vec<Option<[f64; 6]>>, usize)>,
 }
 
 impl<'a> Job<'a> {
@@ -133,6 +143,8 @@ impl<'a> Job<'a> {
             timer,
             across: None,
             input_hash: None,
+            carry: None,
+            edit: None,
         }
     }
 
@@ -154,7 +166,16 @@ impl<'a> Job<'a> {
         let (s, run) = (level.settings(), self.run);
         let mut done = Vec::with_capacity(pages.len());
         for &k in pages {
-            let page = level.page(k, self.scene, &mut self.timer)?;
+            let mut page = level.page(k, self.scene, &mut self.timer)?;
+            if let Some(carry) = self.carry.as_ref().and_then(|c| c.get(k as usize)) {
+                page.carry = carry.clone();
+            }
+            if let Some((boxes, count)) = &mut self.edit {
+                let space = &level.geometry.space;
+                let dirty = carry::dirty(&page.receivers, boxes, space, level.max_distance);
+                *count += dirty.iter().filter(|&&d| d).count();
+                page.dirty = Some(dirty);
+            }
             let passes = page.bake(s, run, &mut self.timer)?;
             let out = page.finish(&passes, s, run, &mut self.timer)?;
             done.push(PageDone::new(
@@ -323,29 +344,28 @@ pub fn bake_reusing(
     let input_hash = reuse::input_hash(&bytes, &scene.doc);
     drop(bytes);
     timer.lap("load");
-    let mut reused = None;
+    let (mut reused, mut carried) = (None, None);
     if let Some((prev, rebake)) = prev {
         let prev_bytes = std::fs::read(prev).map_err(|e| {
             Error::option_conflict("reuse", format!("cannot read {}: {e}", prev.display()))
         })?;
-        let decision = match rebake {
-            Rebake::All => Decision::Full("--rebake all".into(), None),
-            Rebake::Changed => reuse::decide(
-                &prev_bytes,
-                &reuse::Wanted {
-                    input: input_hash,
-                    settings: s,
-                    nodes: reuse::node_prints(&scene),
-                    node_name: &|k| {
-                        let name = scene.doc.json.pointer(&format!("/nodes/{k}/name"));
-                        name.and_then(serde_json::Value::as_str).map(str::to_string)
-                    },
-                    moved_uris: reuse::moved_uris(&scene.doc, prev, output),
+        let all = rebake == Rebake::All;
+        let decision = reuse::decide(
+            &prev_bytes,
+            &reuse::Wanted {
+                input: input_hash,
+                settings: s,
+                nodes: reuse::node_prints(&scene),
+                node_name: &|k| {
+                    let name = scene.doc.json.pointer(&format!("/nodes/{k}/name"));
+                    name.and_then(serde_json::Value::as_str).map(str::to_string)
                 },
-            ),
-        };
+                moved_uris: reuse::moved_uris(&scene.doc, prev, output),
+            },
+            all,
+        );
         timer.lap("reuse check");
-        let (full_bake, nodes) = match decision {
+        let (full_bake, nodes, record) = match decision {
             Decision::Reuse => {
                 file::write_atomic(output, &prev_bytes)?;
                 timer.lap("save");
@@ -358,11 +378,14 @@ pub fn bake_reusing(
                     timer,
                 ));
             }
-            Decision::Full(why, nodes) => (why, nodes),
+            Decision::Full(why, nodes) => (why, nodes, None),
+            Decision::Edited(why, nodes, record) => (why, Some(nodes), Some(record)),
         };
+        carried = record;
         reused = Some(ReuseReport {
             prev: prev.display().to_string(),
             reused: false,
+            carried: false,
             full_bake: Some(full_bake),
             nodes,
             texels_baked: 0,
@@ -371,7 +394,30 @@ pub fn bake_reusing(
         });
     }
     let mut job = Job::new(&scene, s, run, timer);
-    let level = Level::build(&scene, s, run, &mut job.timer)?;
+    // An edited input is mapped into PREV's bake space; when its atlas
+    // turns out not to be PREV's, the level is built again in its own, so
+    // a full bake is always what a bake without PREV writes.
+    let space = carried.as_ref().map(|r| r.space);
+    let mut level = Level::build(&scene, s, run, space, &mut job.timer)?;
+    if let (Some(record), Some(r)) = (&carried, &mut reused) {
+        match carry::carries(record, &level.atlas) {
+            Ok(pages) => {
+                job.carry = Some(pages);
+                let boxes = r
+                    .nodes
+                    .as_ref()
+                    .map(|n| n.boxes.clone())
+                    .unwrap_or_default();
+                job.edit = Some((boxes, 0));
+                r.carried = true;
+            }
+            Err(why) => {
+                let full = r.full_bake.as_mut().expect("a reason");
+                *full = format!("{full}; {why}");
+                level = Level::build(&scene, s, run, None, &mut job.timer)?;
+            }
+        }
+    }
     job.input_hash = Some(input_hash);
     let all: Vec<u32> = (0..level.page_count()).collect();
     let done = job.pages(&level, &all, &mut |_, _, _| {})?;
@@ -379,10 +425,11 @@ pub fn bake_reusing(
     let (glb, warnings) = job.write(&level, &encoded, Some(file::parent_dir(output)))?;
     file::write_atomic(output, &glb)?;
     job.timer.lap("save");
+    let edit = job.edit.take();
     let mut report = job.report(&level, &done, warnings, Some(input));
     if let Some(mut r) = reused {
         r.texels_baked = report.texels;
-        r.texels_dirty = report.texels;
+        r.texels_dirty = edit.map_or(report.texels, |(_, dirty)| dirty);
         report.reuse = Some(r);
     }
     Ok(report)

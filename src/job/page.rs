@@ -7,6 +7,7 @@
 //! and [`PageOutput`] (the page's float lightmap, its encoded images and
 //! seam figures; debug maps and EXR files written if the run asks).
 
+use super::carry::PageCarry;
 use super::level::{Level, page_seed};
 use crate::atlas::{self, Atlas, Receivers};
 use crate::bake::adaptive::{self, AdaptiveStats};
@@ -42,6 +43,12 @@ pub struct Page<'a> {
     /// The border fit traced for this page, kept for runs that bake it
     /// again ([`crate::lightmap::border::FitTargets`]).
     pub fit_cache: crate::lightmap::border::FitCache,
+    /// What the page takes from an earlier bake (`--reuse`, [`PageCarry`]);
+    /// nothing by default.
+    pub carry: PageCarry,
+    /// Per receiver: whether the edit since the carried bake can change
+    /// it ([`super::carry::dirty`]); `None` without a carry.
+    pub dirty: Option<Vec<bool>>,
 }
 
 impl Level {
@@ -93,6 +100,8 @@ impl Level {
             receivers,
             inside,
             fit_cache: Default::default(),
+            carry: PageCarry::default(),
+            dirty: None,
         })
     }
 }
@@ -188,6 +197,7 @@ impl Page<'_> {
                     s.fill_inside,
                     layer,
                     &s.adaptive,
+                    self.carry.scale,
                     &params,
                     timer,
                     &progress,
@@ -222,6 +232,10 @@ impl Page<'_> {
                 (_, Some(stats)) => stats.debug_maps(level.max_distance),
                 _ => Vec::new(),
             };
+            let mut maps = maps;
+            if let Some(dirty) = &self.dirty {
+                maps.push(("dirty", dirty.iter().map(|&d| d as u8 as f32).collect()));
+            }
             if !maps.is_empty() {
                 encode::write_grey_maps(dir, &self.receivers, &maps)?;
             }
@@ -264,7 +278,9 @@ impl Page<'_> {
             }
         }
         timer.restart();
-        let encoded = encode::encode(&lightmap, s.visibility_order)?;
+        let mut encoded =
+            encode::encode_in(&lightmap, s.visibility_order, self.carry.ranges.as_ref())?;
+        encoded.scale = passes.adaptive_stats.as_ref().and_then(|a| a.scale);
         if let Some(dir) = &run.exr_dir {
             let dir = page_dir(dir, self.page);
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;

@@ -476,6 +476,7 @@ pub(crate) fn reused_report(
         reuse: Some(ReuseReport {
             prev: prev.display().to_string(),
             reused: true,
+            carried: false,
             full_bake: None,
             nodes: None,
             texels_baked: 0,

@@ -21,8 +21,12 @@
 //! input that differs from PREV's is baked in full, and the reason says
 //! so (`docs/incremental.md`).
 
+use super::carry;
 use super::settings::{BakeSettings, Device};
+use crate::atlas::Atlas;
 use crate::bits::mix64;
+use crate::encode::Encoded;
+use crate::geometry::BakeSpace;
 use crate::gltf::container::glb_chunks;
 use crate::gltf::{Document, PrimitiveGeometry, Scene};
 use crate::shard::hash64;
@@ -45,6 +49,12 @@ pub struct Fingerprint {
     pub settings: String,
     /// Every node that places a triangle primitive ([`node_prints`]).
     pub nodes: Vec<NodePrint>,
+    /// The bake space ([`carry::space_json`]).
+    pub space: Value,
+    /// [`carry::atlas_hash`] of the atlas, hex.
+    pub atlas: String,
+    /// Per page the adaptive allocation's scale ([`carry::scales_json`]).
+    pub scales: Value,
 }
 
 /// A node's part of the scene as the bake reads it: the shape of what it
@@ -59,24 +69,43 @@ pub struct NodePrint {
     pub shape: String,
     /// Hash of its world transforms and whether each placement is baked.
     pub transform: String,
+    /// The world bounding box of its triangles' vertices, min then max
+    /// (none when it has no finite vertex): how far an edit of it can
+    /// reach ([`carry::dirty`]).
+    pub bounds: Option<[f64; 6]>,
 }
 
 /// Every node's [`NodePrint`], by node index.
 pub fn node_prints(scene: &Scene) -> Vec<NodePrint> {
     let shapes: Vec<u64> = scene.geometries.iter().map(shape_hash).collect();
-    let mut by_node: std::collections::BTreeMap<usize, (u64, u64)> = Default::default();
+    type Print = (u64, u64, Option<[f64; 6]>);
+    let mut by_node: std::collections::BTreeMap<usize, Print> = Default::default();
     for inst in &scene.instances {
-        let (shape, transform) = by_node.entry(inst.node).or_insert((0x5eed, 0x7a5e));
+        let (shape, transform, bounds) = by_node.entry(inst.node).or_insert((0x5eed, 0x7a5e, None));
         *shape = mix64(*shape ^ shapes[inst.geometry]);
         let words = inst.transform.to_cols_array().map(f64::to_bits);
         *transform =
             (words.iter().chain([&(inst.baked as u64)])).fold(*transform, |h, &w| mix64(h ^ w));
+        let g = &scene.geometries[inst.geometry];
+        for &i in &g.triangles {
+            let p = inst
+                .transform
+                .transform_point3(glam::DVec3::from(g.positions[i as usize].map(f64::from)));
+            if p.is_finite() {
+                let b = bounds.get_or_insert([p.x, p.y, p.z, p.x, p.y, p.z]);
+                for k in 0..3 {
+                    b[k] = b[k].min(p[k]);
+                    b[k + 3] = b[k + 3].max(p[k]);
+                }
+            }
+        }
     }
     (by_node.into_iter())
-        .map(|(node, (shape, transform))| NodePrint {
+        .map(|(node, (shape, transform, bounds))| NodePrint {
             node,
             shape: hex(shape),
             transform: hex(transform),
+            bounds,
         })
         .collect()
 }
@@ -99,13 +128,23 @@ fn shape_hash(g: &PrimitiveGeometry) -> u64 {
 
 impl Fingerprint {
     /// The fingerprint of a bake of an input with [`input_hash`] `input`
-    /// under `s`.
-    pub fn new(input: u64, s: &BakeSettings, scene: &Scene) -> Fingerprint {
+    /// under `s`, in `space` on `atlas`, its pages encoded as `pages`.
+    pub fn new(
+        input: u64,
+        s: &BakeSettings,
+        scene: &Scene,
+        space: &BakeSpace,
+        atlas: &Atlas,
+        pages: &[&Encoded],
+    ) -> Fingerprint {
         Fingerprint {
             aobake: env!("CARGO_PKG_VERSION").to_string(),
             input: hex(input),
             settings: hex(settings_hash(s)),
             nodes: node_prints(scene),
+            space: carry::space_json(space),
+            atlas: hex(carry::atlas_hash(atlas)),
+            scales: carry::scales_json(pages),
         }
     }
 
@@ -115,7 +154,10 @@ impl Fingerprint {
             "aobake": self.aobake,
             "input": self.input,
             "settings": self.settings,
-            "nodes": self.nodes.iter().map(|n| json!([n.node, n.shape, n.transform])).collect::<Vec<_>>(),
+            "nodes": self.nodes.iter().map(|n| json!([n.node, n.shape, n.transform, n.bounds])).collect::<Vec<_>>(),
+            "space": self.space,
+            "atlas": self.atlas,
+            "scales": self.scales,
             "integrity": UNSEALED,
         })
     }
@@ -169,6 +211,11 @@ fn integrity_at(glb: &[u8], f: &Value) -> Option<usize> {
 pub enum Decision {
     /// PREV is this bake's output, byte for byte.
     Reuse,
+    /// PREV was baked by this aobake under these settings, from an input
+    /// whose nodes changed as listed (none with `--rebake all` of the
+    /// same input): the new bake may carry PREV's record ([`carry`]) if
+    /// its atlas is PREV's. Why PREV is not the output, in a clause.
+    Edited(String, NodeChanges, carry::PrevRecord),
     /// Bake everything; why PREV could not be used, in one line, and
     /// which nodes changed when the input did.
     Full(String, Option<NodeChanges>),
@@ -189,25 +236,43 @@ pub struct Wanted<'a> {
 }
 
 /// Decides whether PREV (`prev`, its bytes) is the output the new bake
-/// would write (see the module doc).
-pub fn decide(prev: &[u8], want: &Wanted) -> Decision {
-    match check_file(prev, want) {
-        Ok(()) => Decision::Reuse,
-        Err(Why::Text(why)) => Decision::Full(why, None),
-        Err(Why::Input(changes)) => Decision::Full(
-            format!(
-                "the input differs from the one PREV was baked from: {} (only an unchanged input is reused so far)",
-                changes.describe(want.node_name)
-            ),
-            Some(changes),
+/// would write (see the module doc); with `all` (`--rebake all`) it
+/// never is, but its record may still be carried.
+pub fn decide(prev: &[u8], want: &Wanted, all: bool) -> Decision {
+    let older = "PREV's fingerprint records no atlas (written by an older aobake)";
+    let (why, changes, json) = match check_file(prev, want) {
+        Ok(_) if !all && !want.moved_uris => return Decision::Reuse,
+        Ok(json) if all => ("--rebake all".to_string(), None, json),
+        // Only the JSON's URIs differ: the texels are PREV's.
+        Ok(json) => (
+            "the input has relative URIs and OUT lies in another directory than PREV".into(),
+            None,
+            json,
         ),
+        Err(Why::Text(why)) => return Decision::Full(why, None),
+        Err(Why::Input(b)) => {
+            let (changes, json) = *b;
+            (
+                format!(
+                    "the input differs from the one PREV was baked from: {}",
+                    changes.describe(want.node_name)
+                ),
+                Some(changes),
+                json,
+            )
+        }
+    };
+    match carry::read(&json) {
+        Some(record) => Decision::Edited(why, changes.unwrap_or_default(), record),
+        None => Decision::Full(format!("{why}; {older}"), changes),
     }
 }
 
-/// Why a check failed: a line, or the input's node changes.
+/// Why a check failed: a line, or the input's node changes (with PREV's
+/// JSON).
 enum Why {
     Text(String),
-    Input(NodeChanges),
+    Input(Box<(NodeChanges, Value)>),
 }
 
 impl From<String> for Why {
@@ -222,7 +287,8 @@ impl From<&str> for Why {
     }
 }
 
-fn check_file(prev: &[u8], want: &Wanted) -> Result<(), Why> {
+/// PREV's JSON when PREV is this bake's output.
+fn check_file(prev: &[u8], want: &Wanted) -> Result<Value, Why> {
     let (json, _) =
         glb_chunks(prev).map_err(|e| format!("PREV is not a GLB aobake can read ({e})"))?;
     let json: Value =
@@ -244,6 +310,9 @@ fn check_file(prev: &[u8], want: &Wanted) -> Result<(), Why> {
         input: field("input")?.to_string(),
         settings: field("settings")?.to_string(),
         nodes: read_nodes(f).ok_or("PREV's fingerprint has no readable nodes")?,
+        space: Value::Null,
+        atlas: String::new(),
+        scales: Value::Null,
     };
     // The integrity first: an edited file's other fields prove nothing.
     let at = (integrity_at(prev, f))
@@ -272,17 +341,10 @@ fn check_file(prev: &[u8], want: &Wanted) -> Result<(), Why> {
         .into());
     }
     if recorded.input != hex(want.input) {
-        return Err(Why::Input(NodeChanges::between(
-            &recorded.nodes,
-            &want.nodes,
-        )));
+        let changes = NodeChanges::between(&recorded.nodes, &want.nodes);
+        return Err(Why::Input(Box::new((changes, json))));
     }
-    if want.moved_uris {
-        return Err(
-            "the input has relative URIs and OUT lies in another directory than PREV".into(),
-        );
-    }
-    Ok(())
+    Ok(json)
 }
 
 /// Which recorded setting differs from `s`, as far as the extension's
@@ -341,6 +403,9 @@ fn read_nodes(f: &Value) -> Option<Vec<NodePrint>> {
                 node: n.get(0)?.as_u64()? as usize,
                 shape: n.get(1)?.as_str()?.to_string(),
                 transform: n.get(2)?.as_str()?.to_string(),
+                bounds: (n.get(3).and_then(Value::as_array))
+                    .and_then(|b| b.iter().map(Value::as_f64).collect::<Option<Vec<_>>>())
+                    .and_then(|b| b.try_into().ok()),
             })
         })
         .collect()
@@ -357,6 +422,11 @@ pub struct NodeChanges {
     pub added: Vec<usize>,
     pub deleted: Vec<usize>,
     pub unchanged: usize,
+    /// The world boxes of every changed node before and after the edit
+    /// (`None`: one that PREV did not record or that has no finite
+    /// vertex, which bounds nothing).
+    #[serde(skip)]
+    pub boxes: Vec<Option<[f64; 6]>>,
 }
 
 impl NodeChanges {
@@ -371,7 +441,14 @@ impl NodeChanges {
                 None => c.added.push(k),
                 Some(b) if b.shape != a.shape => c.reshaped.push(k),
                 Some(b) if b.transform != a.transform => c.moved.push(k),
-                Some(_) => c.unchanged += 1,
+                Some(_) => {
+                    c.unchanged += 1;
+                    continue;
+                }
+            }
+            c.boxes.push(a.bounds);
+            if let Some(b) = before.get(&k) {
+                c.boxes.push(b.bounds);
             }
         }
         c.deleted = before
@@ -379,6 +456,7 @@ impl NodeChanges {
             .filter(|k| !after.contains_key(k))
             .copied()
             .collect();
+        c.boxes.extend(c.deleted.iter().map(|k| before[k].bounds));
         c
     }
 
@@ -422,6 +500,10 @@ pub struct ReuseReport {
     pub prev: String,
     /// PREV was taken as the output (nothing the bake reads changed).
     pub reused: bool,
+    /// PREV's atlas, allocation scales and encoding ranges were carried
+    /// into this bake ([`carry`]): texels out of an edit's reach are
+    /// PREV's.
+    pub carried: bool,
     /// Why every texel was baked, when they were.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub full_bake: Option<String>,
@@ -444,6 +526,7 @@ mod tests {
 
     fn print(node: usize, shape: &str, transform: &str) -> NodePrint {
         NodePrint {
+            bounds: None,
             node,
             shape: shape.into(),
             transform: transform.into(),

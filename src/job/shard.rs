@@ -48,7 +48,7 @@ pub fn bake_shard(
     let (bytes, scene) = gltf::load_with_bytes(input)?;
     timer.lap("load");
     let mut job = Job::new(&scene, s, run, timer);
-    let level = Level::build(&scene, s, run, &mut job.timer)?;
+    let level = Level::build(&scene, s, run, None, &mut job.timer)?;
     let costs: Vec<f64> = (level.atlas.page_areas().into_iter())
         .zip(level.atlas.page_triangles())
         .map(|(t, n)| page_cost(t, n))

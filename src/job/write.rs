@@ -32,7 +32,9 @@ pub fn write(
     timer: &mut StageTimer,
 ) -> Result<(Vec<u8>, Vec<String>)> {
     timer.restart();
-    let fingerprint = input_hash.map(|h| Fingerprint::new(h, s, scene).to_json());
+    let fingerprint = input_hash.map(|h| {
+        Fingerprint::new(h, s, scene, &level.geometry.space, &level.atlas, pages).to_json()
+    });
     let options = OutputOptions {
         record: BakeRecord {
             method: s.method.name().to_string(),

@@ -17,6 +17,7 @@
 //! refuses it. Floats (scales, offsets) are stored as their bits, so the
 //! merged file holds exactly the shard's values.
 
+use crate::bake::adaptive::Scale;
 use crate::encode::{Encoded, EncodedVisibility};
 use crate::sh::SH_COUNT;
 use serde::{Deserialize, Serialize};
@@ -65,6 +66,9 @@ pub struct PageImages {
     pub sh_offset: Vec<u32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub visibility: Option<VisibilityImages>,
+    /// The adaptive allocation's scale: log2 scale's and margin's bits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<(u32, u64)>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -110,6 +114,7 @@ pub fn write<'a>(mut header: PartialHeader, pages: &[(u32, &'a Encoded)]) -> Vec
                 scale: bits(&v.scale),
                 offset: bits(&v.offset),
             }),
+            scale: e.scale.map(|s| (s.log_scale.to_bits(), s.margin.to_bits())),
         })
         .collect();
     let sizes: Vec<usize> = owned.iter().map(|b| b.len()).collect();
@@ -195,6 +200,10 @@ pub fn read(bytes: &[u8]) -> Result<Partial, String> {
                 }),
                 None => None,
             },
+            scale: p.scale.map(|(l, m)| Scale {
+                log_scale: f32::from_bits(l),
+                margin: f64::from_bits(m),
+            }),
         };
         pages.push((p.page, encoded));
     }

@@ -5,7 +5,9 @@
 //! filter and what its filter leaves of it (from the pre-pass's visible
 //! share and strata crossings, over its neighbourhood; over its N_eff),
 //! [`AdaptiveOptions`]. Out: a power-of-two ray count per receiver in
-//! [`pre_rays`, `max_rays`] ([`allocate_variances`]).
+//! [`pre_rays`, `max_rays`] ([`allocate_variances`]): the page's [`Scale`]
+//! ([`allocation_scale`]), then each receiver's count from its own
+//! variances at that scale ([`counts`]).
 
 use super::options::AdaptiveOptions;
 use super::strata::{Strata, exponent_at_least, exponent_at_most};
@@ -130,33 +132,72 @@ pub fn model_margin(filtered: f32, unfiltered: f32, unfiltered_margin: f64) -> f
     unfiltered_margin + (FILTERED_MARGIN - unfiltered_margin) * removed
 }
 
+/// The page's two numbers that turn every receiver's predicted variance
+/// into its ray count ([`allocation_scale`], [`counts`]): log2 of the
+/// scale and the unfiltered receivers' margin. Apart from them a
+/// receiver's count is its own: a later bake that takes them from an
+/// earlier one (`--reuse`) gives every receiver whose neighbourhood did
+/// not change the count it had.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scale {
+    /// log2 of the scale a receiver's demand is multiplied by.
+    pub log_scale: f32,
+    /// [`unfiltered_margin`] of the share of the page's variance the
+    /// filter removes.
+    pub margin: f64,
+}
+
 /// Ray counts for receivers whose one-ray variance is `unfiltered` before
 /// the filter and `filtered` after it (sd^2 / n_eff for one cell; the mean
 /// over the cells otherwise; 0: pre-pass only). Counts are
 /// power_of_two(scale x sqrt(margin) sd / sqrt(n_eff)) ([`ray_exponent`]; the allocation
 /// that minimizes the summed variance margin sd^2 / (rays^ALPHA n_eff) for
 /// a given number of rays; margin: [`model_margin`]), with the scale found
-/// by bisection: the smallest whose predicted mean variance is at most
-/// `quality`-ray Monte Carlo's, mean sd^2 / quality^ALPHA, or with
-/// `mean_rays` set, whose mean count reaches it.
+/// by bisection ([`allocation_scale`]).
+#[cfg(test)]
 pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOptions) -> Vec<u32> {
+    let scale = allocation_scale(filtered, unfiltered, o);
+    counts(filtered, unfiltered, scale, o)
+}
+
+/// Per receiver: demand sd / sqrt(n_eff) and variance share sd^2 / n_eff,
+/// both of the variance raised by the receiver's model margin.
+#[inline]
+fn term(v: f32, u: f32, margin: f64) -> (f32, f64) {
+    if v > 0.0 {
+        let v = v as f64 * model_margin(v, u, margin);
+        (v.sqrt() as f32, v)
+    } else {
+        (0.0, 0.0)
+    }
+}
+
+/// The ray counts at `scale`: each receiver's from its own variances
+/// alone, 2^round(log2 scale + log2 demand) within [`pre_rays`,
+/// `max_rays`] (a receiver with no demand: the pre-pass's).
+pub fn counts(filtered: &[f32], unfiltered: &[f32], scale: Scale, o: &AdaptiveOptions) -> Vec<u32> {
+    let (lo_exp, hi_exp) = (exponent_at_least(o.pre_rays), exponent_at_most(o.max_rays));
+    (filtered.par_iter().zip(unfiltered))
+        .with_min_len(4096)
+        .map(|(&v, &u)| {
+            let d = term(v, u, scale.margin).0;
+            1 << ray_exponent(scale.log_scale + d.log2(), lo_exp, hi_exp)
+        })
+        .collect()
+}
+
+/// The page's [`Scale`]: the margin from the share of the page's
+/// predicted variance its filter removes, and the smallest scale (by
+/// bisection to f32's resolution on its log2) whose counts' predicted
+/// mean variance is at most `quality`-ray Monte Carlo's, mean sd^2 /
+/// quality^ALPHA, or with `mean_rays` set, whose mean count reaches it.
+pub fn allocation_scale(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOptions) -> Scale {
     // The predicted variance, and the share of it the filter removes.
     let total: f64 = unfiltered.iter().map(|&v| v as f64).sum();
     let kept: f64 = filtered.iter().map(|&v| v as f64).sum();
     let margin = unfiltered_margin(1.0 - kept / total);
-    // Per receiver: demand sd / sqrt(n_eff) and variance share sd^2 / n_eff,
-    // both of the variance raised by the receiver's model margin.
-    let terms: Vec<(f32, f64)> = filtered
-        .iter()
-        .zip(unfiltered)
-        .map(|(&v, &u)| {
-            if v > 0.0 {
-                let v = v as f64 * model_margin(v, u, margin);
-                (v.sqrt() as f32, v)
-            } else {
-                (0.0, 0.0)
-            }
-        })
+    let terms: Vec<(f32, f64)> = (filtered.iter().zip(unfiltered))
+        .map(|(&v, &u)| term(v, u, margin))
         .collect();
     // Counts in log2: a receiver's count at scale s is the power of two
     // nearest s d in log scale, 2^round(log2 s + log2 d) within the bounds,
@@ -207,8 +248,12 @@ pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOpti
             (a.min(l), b.max(l))
         });
     if l_min > l_max {
-        // No receiver asks for more than the pre-pass.
-        return vec![o.pre_rays; terms.len()];
+        // No receiver asks for more than the pre-pass: every count is
+        // the pre-pass's at any scale.
+        return Scale {
+            log_scale: 0.0,
+            margin,
+        };
     }
     let (mut lo, mut hi) = (lo_exp as f32 - 1.0 - l_max, hi_exp as f32 + 1.0 - l_min);
     loop {
@@ -222,11 +267,10 @@ pub fn allocate_variances(filtered: &[f32], unfiltered: &[f32], o: &AdaptiveOpti
             hi = mid;
         }
     }
-    let log_scale = hi;
-    log_demand
-        .iter()
-        .map(|&l| 1 << exponent(log_scale, l))
-        .collect()
+    Scale {
+        log_scale: hi,
+        margin,
+    }
 }
 
 /// The one-ray visibility variance a receiver may still have when `count`

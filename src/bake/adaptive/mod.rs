@@ -44,6 +44,7 @@ pub(crate) mod strata;
 pub(crate) mod sums;
 pub(crate) mod width;
 
+pub use allocation::Scale;
 pub use options::{AdaptiveOptions, MAX_ADAPTIVE_RAYS, MAX_REACH};
 
 use super::visibility as vis;
@@ -70,6 +71,8 @@ pub struct AdaptiveStats {
     /// Per receiver: inside geometry (the validity stage's test, made on
     /// the pre-pass's rays; all false without `fill_inside`).
     pub inside: Vec<bool>,
+    /// The allocation's page scale (found, or carried in).
+    pub scale: Option<Scale>,
 }
 
 impl AdaptiveStats {
@@ -115,6 +118,9 @@ impl AdaptiveStats {
 /// receivers inside geometry ([`super::validity`], from the pre-pass's
 /// rays; they get the pre-pass only and neither lend nor receive in the
 /// filter), returned in [`AdaptiveStats::inside`]. Options validated.
+/// `carried`: the allocation's page [`Scale`] to use instead of finding
+/// it (an earlier bake's, `--reuse`); the one used is in
+/// [`AdaptiveStats::scale`].
 /// Laps: `pre-pass`, `bounds`, `adaptive pass`, `filter`, and with the
 /// layer `visibility pass`, `visibility filter`.
 #[allow(clippy::too_many_arguments)]
@@ -124,6 +130,7 @@ pub fn bake(
     fill_inside: bool,
     visibility: bool,
     o: &AdaptiveOptions,
+    carried: Option<Scale>,
     p: &BakeParams,
     timer: &mut StageTimer,
     progress: &(dyn Fn(u64) + Sync),
@@ -136,7 +143,9 @@ pub fn bake(
     // estimate counts its outputs only).
     let grid = TexelGrid::new(receivers);
     let b = bounds::bounds(receivers, &grid, &pre, o);
-    let rays: Vec<u32> = allocation::allocate_variances(&b.filtered, &b.unfiltered, o)
+    let scale =
+        carried.unwrap_or_else(|| allocation::allocation_scale(&b.filtered, &b.unfiltered, o));
+    let rays: Vec<u32> = allocation::counts(&b.filtered, &b.unfiltered, scale, o)
         .into_iter()
         .map(|t| t.max(o.pre_rays))
         .collect();
@@ -202,6 +211,7 @@ pub fn bake(
         z_min,
         sigma_texels,
         inside,
+        scale: Some(scale),
     };
     (bake, stats)
 }

@@ -1,0 +1,263 @@
+//! What a bake carries over from an earlier one of an edited input
+//! (`--reuse PREV` with PREV's settings and aobake): the numbers that are
+//! global to a page, so that a texel far from the edit comes out of the
+//! new bake as it came out of PREV's.
+//!
+//! In: PREV's JSON (its fingerprint's `space`, `atlas` and `scales`, every baked
+//! primitive's `shScale`, `shOffset` and visibility ranges), the new
+//! level's atlas. Out: per page a [`PageCarry`] (the adaptive
+//! allocation's [`Scale`], each channel's [`Ranges`]) when the new atlas
+//! is PREV's, else why not; and for every output the fingerprint's
+//! `atlas` hash and `scales` ([`atlas_hash`], [`scales_json`]).
+//!
+//! Why these: a texel's rays see only geometry within `maxDistance`, but
+//! four things in a bake are the level's or a page's as a whole: the bake
+//! space (the scene's bounding box: every vertex is mapped by it), the
+//! charts' places
+//! (the packer packs every mesh), the allocation's scale (one bisection
+//! per page turns every receiver's predicted variance into its ray
+//! count) and the encoding's range (each coefficient's minimum and
+//! maximum over the page). Taken from PREV, an edit changes none of them,
+//! so it reaches only the texels near it (`docs/incremental.md`).
+
+use crate::atlas::{Atlas, Receivers};
+use crate::bake::adaptive::Scale;
+use crate::bits::mix64;
+use crate::encode::{Encoded, Ranges};
+use crate::geometry::BakeSpace;
+use glam::DVec3;
+use rayon::prelude::*;
+use serde_json::{Value, json};
+
+/// What one page takes from PREV.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PageCarry {
+    /// The adaptive allocation's scale (none for the other methods).
+    pub scale: Option<Scale>,
+    /// Each channel's scale and offset.
+    pub ranges: Option<Ranges>,
+}
+
+/// What PREV recorded for a later bake to carry: its atlas's hash and
+/// per page what [`PageCarry`] holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PrevRecord {
+    /// PREV's bake space: the new bake's geometry is mapped by it, so that
+    /// an edit that changes the scene's bounds moves no other vertex.
+    pub space: BakeSpace,
+    pub atlas: String,
+    pub pages: Vec<PageCarry>,
+}
+
+/// A hash of everything the atlas decides about the output: the pages'
+/// sizes and, per charted mesh, its vertices' input vertices and lightmap
+/// UVs, its triangles and their pages.
+pub fn atlas_hash(atlas: &Atlas) -> u64 {
+    let mut h = mix64(0xa71a5 ^ atlas.pages.len() as u64);
+    for p in &atlas.pages {
+        h = mix64(h ^ (u64::from(p.width) << 32 | u64::from(p.height)));
+    }
+    for m in &atlas.meshes {
+        h = mix64(h ^ m.xref.len() as u64);
+        h = m.xref.iter().fold(h, |h, &x| mix64(h ^ u64::from(x)));
+        h = (m.uv.iter()).fold(h, |h, uv| {
+            mix64(h ^ (u64::from(uv[0].to_bits()) << 32 | u64::from(uv[1].to_bits())))
+        });
+        h = m
+            .triangles
+            .iter()
+            .fold(mix64(h ^ 1), |h, &t| mix64(h ^ u64::from(t)));
+        h = (m.triangle_page.iter()).fold(mix64(h ^ 2), |h, &p| mix64(h ^ u64::from(p)));
+    }
+    h
+}
+
+/// The fingerprint's `space`: the bake space's centre and unit.
+pub fn space_json(space: &BakeSpace) -> Value {
+    let c = space.center;
+    json!([c.x, c.y, c.z, space.diagonal])
+}
+
+/// The fingerprint's `scales`: per page `[log2 scale, margin]` of the
+/// adaptive allocation, or null.
+pub fn scales_json(pages: &[&Encoded]) -> Value {
+    (pages.iter())
+        .map(|e| match e.scale {
+            Some(s) => json!([s.log_scale, s.margin]),
+            None => Value::Null,
+        })
+        .collect()
+}
+
+/// PREV's record, from its JSON; `None` when its fingerprint has no
+/// `atlas` (an older aobake's) or the pages' fields do not read.
+pub fn read(json: &Value) -> Option<PrevRecord> {
+    let f = json.pointer("/extensions/AOBAKE_lightmap/fingerprint")?;
+    let atlas = f.get("atlas")?.as_str()?.to_string();
+    let space = (f.get("space")?.as_array()?.iter())
+        .map(Value::as_f64)
+        .collect::<Option<Vec<f64>>>()?;
+    let [x, y, z, diagonal] = space[..] else {
+        return None;
+    };
+    let space = BakeSpace {
+        center: DVec3::new(x, y, z),
+        diagonal,
+    };
+    let scales = f.get("scales")?.as_array()?;
+    let mut pages: Vec<PageCarry> = (scales.iter())
+        .map(|s| {
+            let scale = match s {
+                Value::Null => None,
+                s => Some(Scale {
+                    log_scale: s.get(0)?.as_f64()? as f32,
+                    margin: s.get(1)?.as_f64()?,
+                }),
+            };
+            Some(PageCarry {
+                scale,
+                ranges: None,
+            })
+        })
+        .collect::<Option<_>>()?;
+    // Every baked primitive holds its page's ranges; the first read of a
+    // page gives them, a later one with the layer adds the layer's.
+    let prims = (json.get("meshes")?.as_array()?.iter())
+        .filter_map(|m| m.get("primitives")?.as_array())
+        .flatten();
+    for p in prims {
+        let Some(ext) = p.pointer("/extensions/AOBAKE_lightmap") else {
+            continue;
+        };
+        let page = ext.get("page").and_then(Value::as_u64).unwrap_or(0) as usize;
+        let floats = |k: &str| -> Option<Vec<f32>> {
+            (ext.get(k)?.as_array()?.iter())
+                .map(|v| v.as_f64().map(|x| x as f32))
+                .collect()
+        };
+        let ranges = pages.get_mut(page)?.ranges.get_or_insert(Ranges {
+            sh_scale: floats("shScale")?.try_into().ok()?,
+            sh_offset: floats("shOffset")?.try_into().ok()?,
+            visibility: None,
+        });
+        if ranges.visibility.is_none()
+            && let (Some(scale), Some(offset)) =
+                (floats("visibilityScale"), floats("visibilityOffset"))
+        {
+            ranges.visibility = Some((scale, offset));
+        }
+    }
+    Some(PrevRecord {
+        space,
+        atlas,
+        pages,
+    })
+}
+
+/// The pages' carries when the new atlas (`atlas`, hashed as
+/// [`atlas_hash`]) is PREV's, else why not, in a clause.
+pub fn carries(prev: &PrevRecord, atlas: &Atlas) -> Result<Vec<PageCarry>, String> {
+    if prev.atlas != format!("{:016x}", atlas_hash(atlas)) {
+        return Err(
+            "the edit moves the atlas's charts (new or reshaped meshes are not packed into PREV's free space yet)"
+                .into(),
+        );
+    }
+    if prev.pages.len() != atlas.pages.len() {
+        return Err("PREV's pages do not read".into());
+    }
+    Ok(prev.pages.clone())
+}
+
+/// Per receiver: whether an edit can change what its rays see, by the
+/// changed nodes' world boxes before and after it (`boxes`, from
+/// [`super::reuse::NodeChanges`]): its point lies within `max_distance`
+/// (bake units) of one, with the rays' origin offset and a relative
+/// margin for the boxes' rounding into bake space. A box that is `None`
+/// bounds nothing: every receiver is dirty.
+pub fn dirty(
+    receivers: &Receivers,
+    boxes: &[Option<[f64; 6]>],
+    space: &BakeSpace,
+    max_distance: f32,
+) -> Vec<bool> {
+    if boxes.iter().any(Option::is_none) {
+        return vec![true; receivers.len()];
+    }
+    let to_bake = |p: DVec3| (p - space.center) / space.diagonal;
+    let boxes: Vec<(DVec3, DVec3)> = (boxes.iter().flatten())
+        .map(|b| {
+            let lo = to_bake(DVec3::new(b[0], b[1], b[2]));
+            let hi = to_bake(DVec3::new(b[3], b[4], b[5]));
+            (lo, hi)
+        })
+        .collect();
+    // The ray origin's offset along the normal is 1e-5 of the diagonal at
+    // most (the contract's); a thousandth more for rounding.
+    let reach = (max_distance as f64 + 2e-5) * (1.0 + 1e-3) + 1e-6;
+    (receivers.position.par_iter())
+        .with_min_len(4096)
+        .map(|p| {
+            let p = p.as_dvec3();
+            boxes.iter().any(|(lo, hi)| {
+                let d = (*lo - p).max(p - *hi).max(DVec3::ZERO);
+                d.length() <= reach
+            })
+        })
+        .collect()
+}
+
+/// An [`Encoded`]'s ranges as a carry would give them back.
+pub fn ranges_of(e: &Encoded) -> Ranges {
+    Ranges {
+        sh_scale: e.sh_scale,
+        sh_offset: e.sh_offset,
+        visibility: (e.visibility.as_ref()).map(|v| (v.scale.clone(), v.offset.clone())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_record_reads_back_the_scales_and_each_pages_ranges() {
+        let s = Scale {
+            log_scale: 0.1f32 + 1e-7,
+            margin: 1.0 + 1.0 / 3.0,
+        };
+        let sh: Vec<f32> = (0..9).map(|i| 0.1 + i as f32 / 7.0).collect();
+        let json = json!({
+            "extensions": {"AOBAKE_lightmap": {"fingerprint": {
+                "space": [0.1, -2.0, 1e-300, 3.5],
+                "atlas": "00000000000000aa",
+                "scales": [[s.log_scale, s.margin], null],
+            }}},
+            "meshes": [{"primitives": [
+                {"extensions": {"AOBAKE_lightmap": {"page": 1, "shScale": sh, "shOffset": sh}}},
+                {"extensions": {"AOBAKE_lightmap": {"page": 0, "shScale": sh, "shOffset": sh,
+                    "visibilityScale": [0.5, 0.25], "visibilityOffset": [-0.5, 0.0]}}},
+                {},
+            ]}],
+        });
+        let json: Value = serde_json::from_str(&json.to_string()).unwrap();
+        let r = read(&json).unwrap();
+        assert_eq!(r.atlas, "00000000000000aa");
+        assert_eq!(r.space.center, DVec3::new(0.1, -2.0, 1e-300));
+        assert_eq!(r.space.diagonal, 3.5);
+        // The numbers come back to the bit through their JSON.
+        assert_eq!(r.pages[0].scale, Some(s));
+        assert_eq!(r.pages[1].scale, None);
+        let ranges = r.pages[0].ranges.as_ref().unwrap();
+        assert_eq!(ranges.sh_scale.to_vec(), sh);
+        assert_eq!(ranges.visibility, Some((vec![0.5, 0.25], vec![-0.5, 0.0])));
+        assert_eq!(r.pages[1].ranges.as_ref().unwrap().visibility, None);
+        // An older fingerprint (no atlas) carries nothing.
+        let mut old = json.clone();
+        old["extensions"]["AOBAKE_lightmap"]["fingerprint"]
+            .as_object_mut()
+            .unwrap()
+            .remove("atlas");
+        assert_eq!(read(&old), None);
+    }
+}
