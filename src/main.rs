@@ -260,7 +260,9 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
             }
             Some(r) => match &r.full_bake {
                 Some(why) if r.carried => eprintln!(
-                    "aobake: every texel baked on {}'s atlas, allocation and ranges ({why}; rebaking only what an edit changes is not built yet)",
+                    "aobake: {} of {} pages taken from {} (no ray of the edit reaches them), the others baked on its atlas, allocation and ranges ({why})",
+                    r.pages_reused,
+                    report.pages.len(),
                     r.prev
                 ),
                 Some(why) => eprintln!("aobake: full bake, {} not reused: {why}", r.prev),

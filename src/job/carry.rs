@@ -23,19 +23,35 @@
 use crate::atlas::{Atlas, Receivers};
 use crate::bake::adaptive::Scale;
 use crate::bits::mix64;
-use crate::encode::{Encoded, Ranges};
-use crate::geometry::BakeSpace;
+use crate::encode::{Encoded, EncodedVisibility, Ranges};
+use crate::geometry::{BakeGeometry, BakeSpace};
+use crate::lightmap::seams::find::CrossSeam;
 use glam::DVec3;
 use rayon::prelude::*;
 use serde_json::{Value, json};
 
 /// What one page takes from PREV.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default)]
 pub struct PageCarry {
     /// The adaptive allocation's scale (none for the other methods).
     pub scale: Option<Scale>,
     /// Each channel's scale and offset.
     pub ranges: Option<Ranges>,
+    /// PREV's images of the page as written, for a page no edit reaches
+    /// (`None` when they do not read).
+    pub images: Option<Encoded>,
+}
+
+impl PartialEq for PageCarry {
+    fn eq(&self, other: &PageCarry) -> bool {
+        let bytes = |e: &Option<Encoded>| {
+            e.as_ref()
+                .map(|e| (e.occlusion_png.clone(), e.sh_png.clone()))
+        };
+        self.scale == other.scale
+            && self.ranges == other.ranges
+            && bytes(&self.images) == bytes(&other.images)
+    }
 }
 
 /// What PREV recorded for a later bake to carry: its atlas's hash and
@@ -89,9 +105,10 @@ pub fn scales_json(pages: &[&Encoded]) -> Value {
         .collect()
 }
 
-/// PREV's record, from its JSON; `None` when its fingerprint has no
-/// `atlas` (an older aobake's) or the pages' fields do not read.
-pub fn read(json: &Value) -> Option<PrevRecord> {
+/// PREV's record, from its JSON and BIN chunk; `None` when its
+/// fingerprint has no `atlas` (an older aobake's) or the pages' fields do
+/// not read.
+pub fn read(json: &Value, bin: &[u8]) -> Option<PrevRecord> {
     let f = json.pointer("/extensions/AOBAKE_lightmap/fingerprint")?;
     let atlas = f.get("atlas")?.as_str()?.to_string();
     let space = (f.get("space")?.as_array()?.iter())
@@ -116,7 +133,7 @@ pub fn read(json: &Value) -> Option<PrevRecord> {
             };
             Some(PageCarry {
                 scale,
-                ranges: None,
+                ..PageCarry::default()
             })
         })
         .collect::<Option<_>>()?;
@@ -147,11 +164,120 @@ pub fn read(json: &Value) -> Option<PrevRecord> {
             ranges.visibility = Some((scale, offset));
         }
     }
+    for (p, page) in pages.iter_mut().enumerate() {
+        page.images = page_images(json, bin, p, page);
+    }
     Some(PrevRecord {
         space,
         atlas,
         pages,
     })
+}
+
+/// Page `p`'s images in PREV, by the names the writer gives them
+/// (`aobake_occlusion`, `aobake_page{p}_sh0`, ...), with the page's ranges
+/// and scale. A visibility layer whose ranges no primitive of the page
+/// records (none of them has the layer) gets zeros: nothing reads them.
+fn page_images(json: &Value, bin: &[u8], p: usize, page: &PageCarry) -> Option<Encoded> {
+    let name = |base: &str| match p {
+        0 => format!("aobake_{base}"),
+        p => format!("aobake_page{p}_{base}"),
+    };
+    let images = json.get("images")?.as_array()?;
+    let views = json.get("bufferViews")?.as_array()?;
+    let png = |base: &str| -> Option<Vec<u8>> {
+        let wanted = name(base);
+        let image = images
+            .iter()
+            .find(|i| i.get("name").and_then(Value::as_str) == Some(&wanted))?;
+        let view = views.get(image.get("bufferView")?.as_u64()? as usize)?;
+        let at = view.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize;
+        let len = view.get("byteLength")?.as_u64()? as usize;
+        bin.get(at..at.checked_add(len)?).map(<[u8]>::to_vec)
+    };
+    let ranges = page.ranges.as_ref()?;
+    let layer: Vec<Vec<u8>> = (0..)
+        .map_while(|i| png(&format!("visibility{i}")))
+        .collect();
+    let visibility = (!layer.is_empty()).then(|| {
+        let count = if layer.len() == 4 { 16 } else { 9 };
+        let (scale, offset) = (ranges.visibility.clone())
+            .filter(|(s, _)| s.len() == count)
+            .unwrap_or((vec![0.0; count], vec![0.0; count]));
+        EncodedVisibility {
+            png: layer,
+            scale,
+            offset,
+        }
+    });
+    Some(Encoded {
+        occlusion_png: png("occlusion")?,
+        sh_png: [png("sh0")?, png("sh1")?, png("sh2")?],
+        sh_scale: ranges.sh_scale,
+        sh_offset: ranges.sh_offset,
+        visibility,
+        scale: page.scale,
+    })
+}
+
+/// Per page: whether an edit can change any ray traced from it. Every
+/// ray of a page (its receivers', its border fit's points', its
+/// cross-page anchors') starts on a triangle charted on it, so a page is
+/// dirty when the bounding box of one of its triangles lies within
+/// `max_distance` (bake units, with the origin offset and a margin for
+/// rounding) of a changed node's world box (`boxes`, before and after
+/// the edit; a `None` makes every page dirty). Then closed over the
+/// seams across pages: the pass that solves them reads both pages, so a
+/// page tied to a dirty one is baked again with it.
+pub fn dirty_pages(
+    geometry: &BakeGeometry,
+    atlas: &Atlas,
+    cross_seams: &[CrossSeam],
+    boxes: &[Option<[f64; 6]>],
+    max_distance: f32,
+) -> Vec<bool> {
+    let pages = atlas.pages.len();
+    if boxes.iter().any(Option::is_none) {
+        return vec![true; pages];
+    }
+    let space = &geometry.space;
+    let to_bake = |x: f64, y: f64, z: f64| (DVec3::new(x, y, z) - space.center) / space.diagonal;
+    let boxes: Vec<(DVec3, DVec3)> = (boxes.iter().flatten())
+        .map(|b| (to_bake(b[0], b[1], b[2]), to_bake(b[3], b[4], b[5])))
+        .collect();
+    let reach = (max_distance as f64 + 1e-4) * (1.0 + 1e-3);
+    let mut dirty = vec![false; pages];
+    for (mesh, charted) in geometry.receivers.iter().zip(&atlas.meshes) {
+        for (t, &page) in mesh.triangles.chunks_exact(3).zip(&charted.triangle_page) {
+            if dirty[page as usize] {
+                continue;
+            }
+            let p =
+                [t[0], t[1], t[2]].map(|i| DVec3::from(mesh.positions[i as usize].map(f64::from)));
+            let (lo, hi) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+            // A triangle with a non-finite vertex casts no ray.
+            if !(lo.is_finite() && hi.is_finite()) {
+                continue;
+            }
+            dirty[page as usize] = boxes.iter().any(|(blo, bhi)| {
+                let gap = (*blo - hi).max(lo - *bhi).max(DVec3::ZERO);
+                gap.length() <= reach
+            });
+        }
+    }
+    // Across the pages' seams, to a fixed point.
+    loop {
+        let mut grew = false;
+        for s in cross_seams {
+            let [a, b] = s.page.map(|p| p as usize);
+            if dirty[a] != dirty[b] {
+                (dirty[a], dirty[b], grew) = (true, true, true);
+            }
+        }
+        if !grew {
+            return dirty;
+        }
+    }
 }
 
 /// The pages' carries when the new atlas (`atlas`, hashed as
@@ -241,7 +367,7 @@ mod tests {
             ]}],
         });
         let json: Value = serde_json::from_str(&json.to_string()).unwrap();
-        let r = read(&json).unwrap();
+        let r = read(&json, &[]).unwrap();
         assert_eq!(r.atlas, "00000000000000aa");
         assert_eq!(r.space.center, DVec3::new(0.1, -2.0, 1e-300));
         assert_eq!(r.space.diagonal, 3.5);
@@ -258,6 +384,6 @@ mod tests {
             .as_object_mut()
             .unwrap()
             .remove("atlas");
-        assert_eq!(read(&old), None);
+        assert_eq!(read(&old, &[]), None);
     }
 }

@@ -126,6 +126,10 @@ pub struct Job<'a> {
     /// edit ([`reuse::NodeChanges::boxes`]), and the receivers they make
     /// dirty so far ([`carry::dirty`]).
     pub edit: Option<(Vec<Option<[f64; 6]>>, usize)>,
+    /// The pages whose seams across pages [`Job::write`] solves (`None`:
+    /// all): with pages taken from PREV, only those baked again, whose
+    /// seams tie them to no other page ([`carry::dirty_pages`]).
+    pub across_pages: Option<Vec<bool>>,
 }
 
 impl<'a> Job<'a> {
@@ -145,6 +149,7 @@ impl<'a> Job<'a> {
             input_hash: None,
             carry: None,
             edit: None,
+            across_pages: None,
         }
     }
 
@@ -209,7 +214,14 @@ impl<'a> Job<'a> {
         output_dir: Option<&Path>,
     ) -> Result<(Vec<u8>, Vec<String>)> {
         let mut closed = Vec::new();
-        if !level.cross_seams.is_empty() {
+        let seams: Vec<_> = match &self.across_pages {
+            None => level.cross_seams.clone(),
+            Some(solve) => (level.cross_seams.iter())
+                .filter(|s| s.page.iter().all(|&p| solve[p as usize]))
+                .cloned()
+                .collect(),
+        };
+        if !seams.is_empty() {
             self.timer.restart();
             let scale = match self.settings.border {
                 BorderMode::Fit | BorderMode::Band => border::SEAM_SCALE,
@@ -217,7 +229,7 @@ impl<'a> Job<'a> {
             };
             let receivers = &level.geometry.receivers;
             let (pages, report) = across::close(
-                &level.cross_seams,
+                &seams,
                 &level.atlas.pages,
                 encoded,
                 scale,
@@ -419,17 +431,48 @@ pub fn bake_reusing(
         }
     }
     job.input_hash = Some(input_hash);
-    let all: Vec<u32> = (0..level.page_count()).collect();
-    let done = job.pages(&level, &all, &mut |_, _, _| {})?;
-    let encoded: Vec<&Encoded> = done.iter().map(|d| &d.encoded).collect();
+    // With a carry and `--rebake changed`: only the pages an edit reaches
+    // are baked, the others are PREV's images.
+    let pages = level.page_count() as usize;
+    let mut baked = vec![true; pages];
+    let carried_images: Vec<Option<Encoded>> = match (&job.carry, &job.edit) {
+        (Some(carries), Some((boxes, _))) if prev.is_some_and(|(_, r)| r == Rebake::Changed) => {
+            let dirty = carry::dirty_pages(
+                &level.geometry,
+                &level.atlas,
+                &level.cross_seams,
+                boxes,
+                level.max_distance,
+            );
+            let images: Vec<Option<Encoded>> = (carries.iter().zip(&dirty))
+                .map(|(c, &d)| if d { None } else { c.images.clone() })
+                .collect();
+            for (b, i) in baked.iter_mut().zip(&images) {
+                *b = i.is_none();
+            }
+            job.across_pages = Some(baked.clone());
+            images
+        }
+        _ => Vec::new(),
+    };
+    let to_bake: Vec<u32> = (0..pages as u32).filter(|&k| baked[k as usize]).collect();
+    let done = job.pages(&level, &to_bake, &mut |_, _, _| {})?;
+    let mut from_bake = done.iter().map(|d| &d.encoded);
+    let encoded: Vec<&Encoded> = (0..pages)
+        .map(|k| match carried_images.get(k).and_then(Option::as_ref) {
+            Some(e) => e,
+            None => from_bake.next().expect("a baked page"),
+        })
+        .collect();
     let (glb, warnings) = job.write(&level, &encoded, Some(file::parent_dir(output)))?;
     file::write_atomic(output, &glb)?;
     job.timer.lap("save");
     let edit = job.edit.take();
     let mut report = job.report(&level, &done, warnings, Some(input));
     if let Some(mut r) = reused {
-        r.texels_baked = report.texels;
-        r.texels_dirty = edit.map_or(report.texels, |(_, dirty)| dirty);
+        r.texels_baked = done.iter().map(|d| d.texels).sum();
+        r.texels_dirty = edit.map_or(r.texels_baked, |(_, dirty)| dirty);
+        r.pages_reused = baked.iter().filter(|&&b| !b).count();
         report.reuse = Some(r);
     }
     Ok(report)

@@ -262,7 +262,11 @@ pub fn decide(prev: &[u8], want: &Wanted, all: bool) -> Decision {
             )
         }
     };
-    match carry::read(&json) {
+    let bin = glb_chunks(prev)
+        .ok()
+        .and_then(|(_, bin)| bin)
+        .unwrap_or_default();
+    match carry::read(&json, bin) {
         Some(record) => Decision::Edited(why, changes.unwrap_or_default(), record),
         None => Decision::Full(format!("{why}; {older}"), changes),
     }
