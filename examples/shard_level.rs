@@ -34,8 +34,14 @@ fn main() -> Result<(), aobake::Error> {
     };
     let run = RunOptions::QUIET;
     for index in 0..count {
-        let (partial, report) =
-            bake_shard(&input, &output, &settings, &run, Shard { index, count })?;
+        let (partial, report) = bake_shard(
+            &input,
+            &output,
+            None,
+            &settings,
+            &run,
+            Shard { index, count },
+        )?;
         let mine: Vec<u32> = (report.pages.iter())
             .filter(|p| p.baked)
             .map(|p| p.page)

@@ -212,14 +212,13 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
     let (s, run) = (&cli.settings, &cli.run);
     let quiet = !run.progress;
     let report = match &cli.shard {
-        Some(_) if cli.reuse.is_some() => {
-            anyhow::bail!(
-                "--reuse with --shard is not supported yet: reuse in one process, or shard a full bake"
-            )
-        }
         Some(text) => {
             let shard = Shard::parse(text, &|k| std::env::var(k).ok())?;
-            let (path, report) = job::bake_shard(input, output, s, run, shard)?;
+            if cli.rebake.is_some() && cli.reuse.is_none() {
+                anyhow::bail!("--rebake needs --reuse PREV");
+            }
+            let prev = (cli.reuse.as_deref()).map(|p| (p, cli.rebake.unwrap_or_default()));
+            let (path, report) = job::bake_shard(input, output, prev, s, run, shard)?;
             if !quiet {
                 let mine: Vec<u32> = (report.pages.iter())
                     .filter(|p| p.baked)

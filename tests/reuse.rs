@@ -510,4 +510,24 @@ fn a_multi_page_edit_bakes_only_the_pages_it_reaches_with_the_bytes_of_rebaking_
     // The pages it took are PREV's, and PREV's images differ from the
     // edit's where it baked (else the equality above proves nothing).
     assert_ne!(std::fs::read(&part).unwrap(), std::fs::read(&prev).unwrap());
+
+    // Sharded, then merged: the same bytes as in one process; and shards
+    // of the unchanged input give PREV's bytes.
+    for (input, same_as) in [(&moved, &part), (&input, &prev)] {
+        let out = p("sharded.glb");
+        for i in 0..2 {
+            run(
+                input,
+                &out,
+                &["--reuse", prev_s, "--shard", &format!("{i}/2")],
+            );
+        }
+        let o = aobake(&["merge", out.to_str().unwrap(), "-q"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            std::fs::read(&out).unwrap() == std::fs::read(same_as).unwrap(),
+            "the merged shards of {} differ",
+            input.display()
+        );
+    }
 }

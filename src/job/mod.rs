@@ -36,6 +36,7 @@
 pub mod across;
 pub mod carry;
 pub mod device;
+pub(crate) mod incremental;
 pub(crate) mod level;
 pub(crate) mod page;
 pub(crate) mod report;
@@ -69,7 +70,6 @@ use crate::lightmap::Lightmap;
 use crate::lightmap::border;
 use crate::stage::StageTimer;
 use carry::PageCarry;
-use reuse::Decision;
 use std::path::Path;
 
 /// One bake of one scene: the scene, what the bake is, how the run goes,
@@ -329,8 +329,9 @@ pub fn bake(input: &Path, output: &Path, s: &BakeSettings, run: &RunOptions) -> 
 
 /// [`bake`], with `--reuse PREV` (`prev`: PREV's path and what to bake
 /// again): PREV is taken as the output when it is what this bake would
-/// write ([`reuse`]), else every texel is baked and the report says why.
-/// PREV is read only; it may not be the output.
+/// write ([`reuse`]); an edited input on PREV's atlas bakes only the pages
+/// an edit reaches ([`incremental`]); else every texel is baked and the
+/// report says why. PREV is read only; it may not be the output.
 pub fn bake_reusing(
     input: &Path,
     output: &Path,
@@ -340,126 +341,38 @@ pub fn bake_reusing(
 ) -> Result<Report> {
     s.validate()?;
     check_output(input, output)?;
-    if let Some((prev, _)) = prev
-        && file::same_file(prev, output)
-    {
-        return Err(Error::option_conflict(
-            "reuse",
-            format!(
-                "{} is OUT; PREV is only read, write the new bake elsewhere",
-                output.display()
-            ),
-        ));
-    }
     let mut timer = StageTimer::new();
     let (bytes, scene) = gltf::load_with_bytes(input)?;
     let input_hash = reuse::input_hash(&bytes, &scene.doc);
     drop(bytes);
     timer.lap("load");
-    let (mut reused, mut carried) = (None, None);
-    if let Some((prev, rebake)) = prev {
-        let prev_bytes = std::fs::read(prev).map_err(|e| {
-            Error::option_conflict("reuse", format!("cannot read {}: {e}", prev.display()))
-        })?;
-        let all = rebake == Rebake::All;
-        let decision = reuse::decide(
-            &prev_bytes,
-            &reuse::Wanted {
-                input: input_hash,
-                settings: s,
-                nodes: reuse::node_prints(&scene),
-                node_name: &|k| {
-                    let name = scene.doc.json.pointer(&format!("/nodes/{k}/name"));
-                    name.and_then(serde_json::Value::as_str).map(str::to_string)
-                },
-                moved_uris: reuse::moved_uris(&scene.doc, prev, output),
-            },
-            all,
-        );
-        timer.lap("reuse check");
-        let (full_bake, nodes, record) = match decision {
-            Decision::Reuse => {
-                file::write_atomic(output, &prev_bytes)?;
-                timer.lap("save");
-                return Ok(report::reused_report(
-                    &prev_bytes,
-                    prev,
-                    input,
-                    &scene,
-                    s,
-                    timer,
-                ));
-            }
-            Decision::Full(why, nodes) => (why, nodes, None),
-            Decision::Edited(why, nodes, record) => (why, Some(nodes), Some(record)),
-        };
-        carried = record;
-        reused = Some(ReuseReport {
-            prev: prev.display().to_string(),
-            reused: false,
-            carried: false,
-            full_bake: Some(full_bake),
-            nodes,
-            texels_baked: 0,
-            texels_dirty: 0,
-            pages_reused: 0,
-        });
-    }
-    let mut job = Job::new(&scene, s, run, timer);
-    // An edited input is mapped into PREV's bake space; when its atlas
-    // turns out not to be PREV's, the level is built again in its own, so
-    // a full bake is always what a bake without PREV writes.
-    let space = carried.as_ref().map(|r| r.space);
-    let mut level = Level::build(&scene, s, run, space, &mut job.timer)?;
-    if let (Some(record), Some(r)) = (&carried, &mut reused) {
-        match carry::carries(record, &level.atlas) {
-            Ok(pages) => {
-                job.carry = Some(pages);
-                let boxes = r
-                    .nodes
-                    .as_ref()
-                    .map(|n| n.boxes.clone())
-                    .unwrap_or_default();
-                job.edit = Some((boxes, 0));
-                r.carried = true;
-            }
-            Err(why) => {
-                let full = r.full_bake.as_mut().expect("a reason");
-                *full = format!("{full}; {why}");
-                level = Level::build(&scene, s, run, None, &mut job.timer)?;
-            }
+    let mut plan = match incremental::check(prev, output, &scene, s, input_hash, false, &mut timer)?
+    {
+        incremental::Start::Reused(prev, prev_bytes) => {
+            file::write_atomic(output, &prev_bytes)?;
+            timer.lap("save");
+            return Ok(report::reused_report(
+                &prev_bytes,
+                &prev,
+                input,
+                &scene,
+                s,
+                timer,
+            ));
         }
-    }
-    job.input_hash = Some(input_hash);
-    // With a carry and `--rebake changed`: only the pages an edit reaches
-    // are baked, the others are PREV's images.
-    let pages = level.page_count() as usize;
-    let mut baked = vec![true; pages];
-    let carried_images: Vec<Option<Encoded>> = match (&job.carry, &job.edit) {
-        (Some(carries), Some((boxes, _))) if prev.is_some_and(|(_, r)| r == Rebake::Changed) => {
-            let dirty = carry::dirty_pages(
-                &level.geometry,
-                &level.atlas,
-                &level.cross_seams,
-                boxes,
-                level.max_distance,
-            );
-            let images: Vec<Option<Encoded>> = (carries.iter().zip(&dirty))
-                .map(|(c, &d)| if d { None } else { c.images.clone() })
-                .collect();
-            for (b, i) in baked.iter_mut().zip(&images) {
-                *b = i.is_none();
-            }
-            job.across_pages = Some(baked.clone());
-            images
-        }
-        _ => Vec::new(),
+        incremental::Start::Bake(plan) => *plan,
     };
-    let to_bake: Vec<u32> = (0..pages as u32).filter(|&k| baked[k as usize]).collect();
+    let mut job = Job::new(&scene, s, run, timer);
+    let (level, from_prev) = incremental::level(&mut job, &mut plan)?;
+    job.input_hash = Some(input_hash);
+    let pages = level.page_count() as usize;
+    let to_bake: Vec<u32> = (0..pages as u32)
+        .filter(|&k| from_prev[k as usize].is_none())
+        .collect();
     let done = job.pages(&level, &to_bake, &mut |_, _, _| {})?;
     let mut from_bake = done.iter().map(|d| &d.encoded);
-    let encoded: Vec<&Encoded> = (0..pages)
-        .map(|k| match carried_images.get(k).and_then(Option::as_ref) {
+    let encoded: Vec<&Encoded> = (from_prev.iter())
+        .map(|e| match e {
             Some(e) => e,
             None => from_bake.next().expect("a baked page"),
         })
@@ -467,14 +380,9 @@ pub fn bake_reusing(
     let (glb, warnings) = job.write(&level, &encoded, Some(file::parent_dir(output)))?;
     file::write_atomic(output, &glb)?;
     job.timer.lap("save");
-    let edit = job.edit.take();
+    let dirty = job.edit.take().map(|(_, dirty)| dirty);
     let mut report = job.report(&level, &done, warnings, Some(input));
-    if let Some(mut r) = reused {
-        r.texels_baked = done.iter().map(|d| d.texels).sum();
-        r.texels_dirty = edit.map_or(r.texels_baked, |(_, dirty)| dirty);
-        r.pages_reused = baked.iter().filter(|&&b| !b).count();
-        report.reuse = Some(r);
-    }
+    report.reuse = plan.finish(&done, &from_prev, dirty);
     Ok(report)
 }
 

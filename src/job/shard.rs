@@ -14,10 +14,12 @@
 //! writes every page's images. A shard's fingerprint holds the
 //! [`BakeSettings`] as JSON: exactly what decides the output's bytes.
 
-use super::{Job, Level, Report, check_output};
+use super::reuse::Rebake;
+use super::{Job, Level, Report, check_output, incremental};
 use crate::encode::Encoded;
 use crate::error::{Error, Result};
 use crate::file;
+use crate::geometry::BakeSpace;
 use crate::gltf;
 use crate::job::settings::{BakeSettings, Device, RunOptions};
 use crate::shard::partial::{self, FORMAT, PartialHeader};
@@ -34,10 +36,14 @@ fn settings_json(s: &BakeSettings) -> (serde_json::Value, Vec<u8>) {
 
 /// Bakes shard `shard`'s pages of `input` and writes its partial beside
 /// `output` (atomically; a shard killed midway leaves none, a re-run
-/// replaces it). Returns the partial's path and the shard's report.
+/// replaces it). With `prev` (`--reuse PREV`): the shard's pages that no
+/// ray of an edit reaches are PREV's images, as in one process
+/// ([`super::incremental`]). Returns the partial's path and the shard's
+/// report.
 pub fn bake_shard(
     input: &Path,
     output: &Path,
+    prev: Option<(&Path, Rebake)>,
     s: &BakeSettings,
     run: &RunOptions,
     shard: Shard,
@@ -47,19 +53,32 @@ pub fn bake_shard(
     let mut timer = StageTimer::new();
     let (bytes, scene) = gltf::load_with_bytes(input)?;
     timer.lap("load");
+    let input_hash = super::reuse::input_hash(&bytes, &scene.doc);
+    let mut plan = match incremental::check(prev, output, &scene, s, input_hash, true, &mut timer)?
+    {
+        incremental::Start::Bake(plan) => *plan,
+        incremental::Start::Reused(..) => unreachable!("a shard's check never reuses the file"),
+    };
     let mut job = Job::new(&scene, s, run, timer);
-    let level = Level::build(&scene, s, run, None, &mut job.timer)?;
+    let (level, from_prev) = incremental::level(&mut job, &mut plan)?;
     let costs: Vec<f64> = (level.atlas.page_areas().into_iter())
         .zip(level.atlas.page_triangles())
         .map(|(t, n)| page_cost(t, n))
         .collect();
     let mine = assign(&costs, shard.count).swap_remove(shard.index as usize);
-    let done = job.pages(&level, &mine, &mut |_, _, _| {})?;
+    let to_bake: Vec<u32> = (mine.iter().copied())
+        .filter(|&k| from_prev[k as usize].is_none())
+        .collect();
+    let done = job.pages(&level, &to_bake, &mut |_, _, _| {})?;
     // Where this shard traced is part of its fingerprint: shards of one
     // level traced on different devices are refused at the merge.
     let mut recorded = s.clone();
     recorded.device = level.backend.device();
     let (settings, settings_bytes) = settings_json(&recorded);
+    let space = plan.carried.as_ref().map(|r| {
+        let c = r.space.center;
+        [c.x, c.y, c.z, r.space.diagonal]
+    });
     let header = PartialHeader {
         format: FORMAT,
         identity: identity(&bytes, &settings_bytes, shard.count, level.page_count()),
@@ -70,14 +89,29 @@ pub fn bake_shard(
             .to_string(),
         settings,
         pages: Vec::new(),
+        space,
+        from_prev: (mine.iter().copied())
+            .filter(|&k| from_prev[k as usize].is_some())
+            .collect(),
     };
-    let pages: Vec<(u32, &Encoded)> = done.iter().map(|d| (d.page, &d.encoded)).collect();
+    let mut baked = done.iter().map(|d| &d.encoded);
+    let pages: Vec<(u32, &Encoded)> = (mine.iter())
+        .map(|&k| match &from_prev[k as usize] {
+            Some(e) => (k, e),
+            None => (k, baked.next().expect("a baked page")),
+        })
+        .collect();
     let path = partial_path(output, shard);
     file::write_atomic(&path, &partial::write(header, &pages))?;
     job.timer.lap("save");
     let warnings = scene.warnings.clone();
+    let dirty = job.edit.take().map(|(_, dirty)| dirty);
     let mut report = job.report(&level, &done, warnings, Some(input));
     report.shard = Some(shard);
+    let mine_prev: Vec<Option<Encoded>> = (mine.iter())
+        .map(|&k| from_prev[k as usize].clone())
+        .collect();
+    report.reuse = plan.finish(&done, &mine_prev, dirty);
     Ok((path, report))
 }
 
@@ -120,10 +154,24 @@ pub fn merge(output: &Path) -> Result<Merged> {
     // The merge casts no ray: its level traces on the CPU.
     let mut on_cpu = settings.clone();
     on_cpu.device = Device::Cpu;
+    on_cpu.validate()?;
     let mut job = Job::new(&scene, &on_cpu, &run, StageTimer::new());
     // The fingerprint a bake in one process writes.
     job.input_hash = Some(super::reuse::input_hash(&bytes, &scene.doc));
-    let level = job.level()?;
+    // With `--reuse`: the level in the bake space the shards took from
+    // PREV, and the pass across pages over the pages they baked.
+    let space = reference.space.map(|[x, y, z, diagonal]| BakeSpace {
+        center: glam::DVec3::new(x, y, z),
+        diagonal,
+    });
+    let level = Level::build(&scene, &on_cpu, &run, space, &mut job.timer)?;
+    let from_prev: Vec<u32> = (set.partials.iter())
+        .flat_map(|(_, p)| p.header.from_prev.iter().copied())
+        .collect();
+    if !from_prev.is_empty() {
+        let baked = (0..level.page_count()).map(|k| !from_prev.contains(&k));
+        job.across_pages = Some(baked.collect());
+    }
     if level.page_count() != page_count {
         return Err(set.refuse(format!(
             "{page_count} pages, but the input unwraps into {}",

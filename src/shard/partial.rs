@@ -54,6 +54,15 @@ pub struct PartialHeader {
     /// The bake's settings (their hash is in the identity).
     pub settings: serde_json::Value,
     pub pages: Vec<PageImages>,
+    /// With `--reuse`: the bake space taken from PREV (centre, unit), so
+    /// the merge builds the level the shards baked.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub space: Option<[f64; 4]>,
+    /// With `--reuse`: this shard's pages that are PREV's images (no ray
+    /// of the edit reaches them); the merge's pass across pages leaves
+    /// their seams as PREV solved them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub from_prev: Vec<u32>,
 }
 
 /// One page's encoded images: blob indices and the floats' bits.
