@@ -69,11 +69,13 @@ struct BakeArgs {
     shard: Option<String>,
     /// An earlier output of aobake (only read): taken as OUT when nothing
     /// the bake reads changed since (the input's bytes, the settings, this
-    /// aobake), else every texel is baked and a line says why
+    /// aobake); after an edit that keeps PREV's atlas (nodes moved), the
+    /// pages no ray of the edit reaches are PREV's and the others are baked
+    /// on PREV's atlas; else every texel is baked and a line says why
     #[arg(long, value_name = "PREV")]
     reuse: Option<PathBuf>,
-    /// With --reuse: bake again what an edit can change, or all (PREV
-    /// checked, not used) [default: changed]
+    /// With --reuse: bake again the pages an edit can change, or all
+    /// (on PREV's atlas when it is kept) [default: changed]
     #[arg(long, value_enum, value_name = "WHAT")]
     rebake: Option<Rebake>,
     #[command(flatten)]

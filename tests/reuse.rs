@@ -231,6 +231,57 @@ fn every_prev_that_is_not_this_bakes_output_gets_a_reason_and_a_full_bake() {
     );
     assert!(std::fs::read(&out).unwrap() == std::fs::read(&all).unwrap());
     assert_ne!(std::fs::read(&out).unwrap(), prev_bytes);
+
+    // A node added: another atlas, so a full bake, a fresh bake's bytes.
+    let added = p("added_input.glb");
+    std::fs::write(
+        &added,
+        edited(&input_bytes, |j| {
+            let mut node = j["nodes"][2].clone();
+            node["name"] = serde_json::json!("extra");
+            node["translation"][0] = serde_json::json!(-300.0);
+            let k = j["nodes"].as_array().unwrap().len();
+            j["nodes"].as_array_mut().unwrap().push(node);
+            j["scenes"][0]["nodes"]
+                .as_array_mut()
+                .unwrap()
+                .push(serde_json::json!(k));
+        }),
+    )
+    .unwrap();
+    let (fresh_added, out) = (p("added_fresh.glb"), p("added.glb"));
+    bake(&added, &fresh_added, &[]);
+    let (_, report) = bake(&added, &out, &["--reuse", prev.to_str().unwrap()]);
+    let r = &report["reuse"];
+    assert_eq!(r["carried"], false, "{r}");
+    let why = r["full_bake"].as_str().unwrap();
+    assert!(why.contains("added nodes[4] \"extra\""), "{why}");
+    assert!(why.contains("moves the atlas's charts"), "{why}");
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(&fresh_added).unwrap());
+
+    // An older PREV (its fingerprint without the atlas, sealed as that
+    // aobake sealed it): the edited input is baked in full.
+    let older = p("older.glb");
+    let mut f = serde_json::Value::Null;
+    let mut bytes = edited(&prev_bytes, |j| {
+        let fp = &mut j["extensions"]["AOBAKE_lightmap"]["fingerprint"];
+        for k in ["space", "atlas", "scales", "integrity"] {
+            fp.as_object_mut().unwrap().remove(k);
+        }
+        fp["integrity"] = serde_json::json!("0000000000000000");
+        f = fp.clone();
+    });
+    aobake::job::reuse::seal(&mut bytes, &f);
+    std::fs::write(&older, &bytes).unwrap();
+    let (fresh_moved, out) = (p("moved_fresh.glb"), p("moved_older.glb"));
+    bake(&moved_input, &fresh_moved, &[]);
+    let (_, report) = bake(&moved_input, &out, &["--reuse", older.to_str().unwrap()]);
+    let why = report["reuse"]["full_bake"].as_str().unwrap();
+    assert!(
+        why.contains("moved nodes[2]") && why.contains("records no atlas"),
+        "{why}"
+    );
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(&fresh_moved).unwrap());
 }
 
 /// A 10 x 10 floor (node 0) with a cube of side 0.5 on it (node 1) at

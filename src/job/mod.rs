@@ -330,7 +330,7 @@ pub fn bake(input: &Path, output: &Path, s: &BakeSettings, run: &RunOptions) -> 
 /// [`bake`], with `--reuse PREV` (`prev`: PREV's path and what to bake
 /// again): PREV is taken as the output when it is what this bake would
 /// write ([`reuse`]); an edited input on PREV's atlas bakes only the pages
-/// an edit reaches ([`incremental`]); else every texel is baked and the
+/// an edit reaches (`job/incremental.rs`); else every texel is baked and the
 /// report says why. PREV is read only; it may not be the output.
 pub fn bake_reusing(
     input: &Path,

@@ -17,9 +17,11 @@
 //! output edited after aobake wrote it (its images, its extension, any
 //! byte) from one that was not.
 //!
-//! Rebaking only the texels an edit can change is not here yet: an
-//! input that differs from PREV's is baked in full, and the reason says
-//! so (`docs/incremental.md`).
+//! An input that differs from PREV's, baked by this aobake under the same
+//! settings, is [`Decision::Edited`]: the bake may carry PREV's page-wide
+//! numbers and take PREV's images for the pages no ray of the edit reaches
+//! ([`super::carry`], `job/incremental.rs`); rebaking only the changed
+//! texels within a page is not here yet (`docs/incremental.md`).
 
 use super::carry;
 use super::settings::{BakeSettings, Device};
@@ -517,10 +519,11 @@ pub struct ReuseReport {
     pub nodes: Option<NodeChanges>,
     /// Texels this run baked (every texel of the atlas on a full bake).
     pub texels_baked: usize,
-    /// Texels an edit could change: every texel on a full bake, none
-    /// when PREV is reused.
+    /// Receivers an edit could change: those within reach of the changed
+    /// nodes on a carried bake ([`carry::dirty`]), every texel baked on a
+    /// full bake, none when PREV is reused.
     pub texels_dirty: usize,
-    /// Atlas pages taken from PREV (all of its pages when reused).
+    /// Atlas pages whose images are PREV's (all of them when reused).
     pub pages_reused: usize,
 }
 

@@ -38,7 +38,7 @@ fn settings_json(s: &BakeSettings) -> (serde_json::Value, Vec<u8>) {
 /// `output` (atomically; a shard killed midway leaves none, a re-run
 /// replaces it). With `prev` (`--reuse PREV`): the shard's pages that no
 /// ray of an edit reaches are PREV's images, as in one process
-/// ([`super::incremental`]). Returns the partial's path and the shard's
+/// (`job/incremental.rs`). Returns the partial's path and the shard's
 /// report.
 pub fn bake_shard(
     input: &Path,

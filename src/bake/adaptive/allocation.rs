@@ -133,7 +133,7 @@ pub fn model_margin(filtered: f32, unfiltered: f32, unfiltered_margin: f64) -> f
 }
 
 /// The page's two numbers that turn every receiver's predicted variance
-/// into its ray count ([`allocation_scale`], [`counts`]): log2 of the
+/// into its ray count (`allocation_scale`, `counts`): log2 of the
 /// scale and the unfiltered receivers' margin. Apart from them a
 /// receiver's count is its own: a later bake that takes them from an
 /// earlier one (`--reuse`) gives every receiver whose neighbourhood did
@@ -142,7 +142,7 @@ pub fn model_margin(filtered: f32, unfiltered: f32, unfiltered_margin: f64) -> f
 pub struct Scale {
     /// log2 of the scale a receiver's demand is multiplied by.
     pub log_scale: f32,
-    /// [`unfiltered_margin`] of the share of the page's variance the
+    /// `unfiltered_margin` of the share of the page's variance the
     /// filter removes.
     pub margin: f64,
 }
