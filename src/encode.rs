@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use std::path::Path;
 
 /// The contract's encoded images.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Encoded {
     pub occlusion_png: Vec<u8>,
     pub sh_png: [Vec<u8>; 3],
@@ -43,7 +43,7 @@ pub struct Ranges {
 
 /// The visibility layer's images: `png[k]` holds v_{4k}..v_{4k+3} in
 /// RGBA, v_i = scale\[i\] x channel_i + offset\[i\].
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct EncodedVisibility {
     pub png: Vec<Vec<u8>>,
     pub scale: Vec<f32>,

@@ -28,6 +28,20 @@ impl BakeSpace {
     pub fn to_world(&self, p: Vec3) -> Vec3 {
         self.center.as_vec3() + p * self.diagonal as f32
     }
+
+    /// `[centre x, y, z, unit]`: how an output's fingerprint and a shard's
+    /// partial record it ([`Self::from_array`] reads it back).
+    pub fn to_array(&self) -> [f64; 4] {
+        let c = self.center;
+        [c.x, c.y, c.z, self.diagonal]
+    }
+
+    pub fn from_array([x, y, z, diagonal]: [f64; 4]) -> BakeSpace {
+        BakeSpace {
+            center: DVec3::new(x, y, z),
+            diagonal,
+        }
+    }
 }
 
 /// A baked placement in bake space, ready to unwrap and rasterize.

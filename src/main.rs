@@ -213,13 +213,13 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
     };
     let (s, run) = (&cli.settings, &cli.run);
     let quiet = !run.progress;
+    if cli.rebake.is_some() && cli.reuse.is_none() {
+        anyhow::bail!("--rebake needs --reuse PREV");
+    }
+    let prev = (cli.reuse.as_deref()).map(|p| (p, cli.rebake.unwrap_or_default()));
     let report = match &cli.shard {
         Some(text) => {
             let shard = Shard::parse(text, &|k| std::env::var(k).ok())?;
-            if cli.rebake.is_some() && cli.reuse.is_none() {
-                anyhow::bail!("--rebake needs --reuse PREV");
-            }
-            let prev = (cli.reuse.as_deref()).map(|p| (p, cli.rebake.unwrap_or_default()));
             let (path, report) = job::bake_shard(input, output, prev, s, run, shard)?;
             if !quiet {
                 let mine: Vec<u32> = (report.pages.iter())
@@ -236,14 +236,7 @@ fn run_bake(cli: &BakeArgs) -> anyhow::Result<()> {
             }
             report
         }
-        None => {
-            if cli.rebake.is_some() && cli.reuse.is_none() {
-                anyhow::bail!("--rebake needs --reuse PREV");
-            }
-            let rebake = cli.rebake.unwrap_or_default();
-            let prev = cli.reuse.as_deref().map(|p| (p, rebake));
-            job::bake_reusing(input, output, prev, s, run)?
-        }
+        None => job::bake_reusing(input, output, prev, s, run)?,
     };
     if !quiet {
         for w in &report.warnings {

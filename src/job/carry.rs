@@ -31,7 +31,7 @@ use rayon::prelude::*;
 use serde_json::{Value, json};
 
 /// What one page takes from PREV.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct PageCarry {
     /// The adaptive allocation's scale (none for the other methods).
     pub scale: Option<Scale>,
@@ -40,18 +40,6 @@ pub struct PageCarry {
     /// PREV's images of the page as written, for a page no edit reaches
     /// (`None` when they do not read).
     pub images: Option<Encoded>,
-}
-
-impl PartialEq for PageCarry {
-    fn eq(&self, other: &PageCarry) -> bool {
-        let bytes = |e: &Option<Encoded>| {
-            e.as_ref()
-                .map(|e| (e.occlusion_png.clone(), e.sh_png.clone()))
-        };
-        self.scale == other.scale
-            && self.ranges == other.ranges
-            && bytes(&self.images) == bytes(&other.images)
-    }
 }
 
 /// What PREV recorded for a later bake to carry: its atlas's hash and
@@ -90,8 +78,7 @@ pub fn atlas_hash(atlas: &Atlas) -> u64 {
 
 /// The fingerprint's `space`: the bake space's centre and unit.
 pub fn space_json(space: &BakeSpace) -> Value {
-    let c = space.center;
-    json!([c.x, c.y, c.z, space.diagonal])
+    json!(space.to_array())
 }
 
 /// The fingerprint's `scales`: per page `[log2 scale, margin]` of the
@@ -114,13 +101,7 @@ pub fn read(json: &Value, bin: &[u8]) -> Option<PrevRecord> {
     let space = (f.get("space")?.as_array()?.iter())
         .map(Value::as_f64)
         .collect::<Option<Vec<f64>>>()?;
-    let [x, y, z, diagonal] = space[..] else {
-        return None;
-    };
-    let space = BakeSpace {
-        center: DVec3::new(x, y, z),
-        diagonal,
-    };
+    let space = BakeSpace::from_array(space.try_into().ok()?);
     let scales = f.get("scales")?.as_array()?;
     let mut pages: Vec<PageCarry> = (scales.iter())
         .map(|s| {
@@ -220,6 +201,23 @@ fn page_images(json: &Value, bin: &[u8], p: usize, page: &PageCarry) -> Option<E
     })
 }
 
+/// The changed nodes' world boxes (`boxes`, from
+/// [`super::reuse::NodeChanges`]) in bake space, min and max; `None` when
+/// one of them bounds nothing (PREV did not record it, or it has no finite
+/// vertex): then everything is dirty.
+fn boxes_in(boxes: &[Option<[f64; 6]>], space: &BakeSpace) -> Option<Vec<(DVec3, DVec3)>> {
+    let to_bake = |x: f64, y: f64, z: f64| (DVec3::new(x, y, z) - space.center) / space.diagonal;
+    (boxes.iter())
+        .map(|b| b.map(|b| (to_bake(b[0], b[1], b[2]), to_bake(b[3], b[4], b[5]))))
+        .collect()
+}
+
+/// The distance between the box [`lo`, `hi`] and any of `boxes` is at most
+/// `reach`.
+fn within(lo: DVec3, hi: DVec3, boxes: &[(DVec3, DVec3)], reach: f64) -> bool {
+    (boxes.iter()).any(|&(blo, bhi)| (blo - hi).max(lo - bhi).max(DVec3::ZERO).length() <= reach)
+}
+
 /// Per page: whether an edit can change any ray traced from it. Every
 /// ray of a page (its receivers', its border fit's points', its
 /// cross-page anchors') starts on a triangle charted on it, so a page is
@@ -237,14 +235,9 @@ pub fn dirty_pages(
     max_distance: f32,
 ) -> Vec<bool> {
     let pages = atlas.pages.len();
-    if boxes.iter().any(Option::is_none) {
+    let Some(boxes) = boxes_in(boxes, &geometry.space) else {
         return vec![true; pages];
-    }
-    let space = &geometry.space;
-    let to_bake = |x: f64, y: f64, z: f64| (DVec3::new(x, y, z) - space.center) / space.diagonal;
-    let boxes: Vec<(DVec3, DVec3)> = (boxes.iter().flatten())
-        .map(|b| (to_bake(b[0], b[1], b[2]), to_bake(b[3], b[4], b[5])))
-        .collect();
+    };
     let reach = (max_distance as f64 + 1e-4) * (1.0 + 1e-3);
     let mut dirty = vec![false; pages];
     for (mesh, charted) in geometry.receivers.iter().zip(&atlas.meshes) {
@@ -259,10 +252,7 @@ pub fn dirty_pages(
             if !(lo.is_finite() && hi.is_finite()) {
                 continue;
             }
-            dirty[page as usize] = boxes.iter().any(|(blo, bhi)| {
-                let gap = (*blo - hi).max(lo - *bhi).max(DVec3::ZERO);
-                gap.length() <= reach
-            });
+            dirty[page as usize] = within(lo, hi, &boxes, reach);
         }
     }
     // Across the pages' seams, to a fixed point.
@@ -280,9 +270,9 @@ pub fn dirty_pages(
     }
 }
 
-/// The pages' carries when the new atlas (`atlas`, hashed as
-/// [`atlas_hash`]) is PREV's, else why not, in a clause.
-pub fn carries(prev: &PrevRecord, atlas: &Atlas) -> Result<Vec<PageCarry>, String> {
+/// Whether PREV's pages may be carried: the new atlas (`atlas`, hashed as
+/// [`atlas_hash`]) is PREV's; else why not, in a clause.
+pub fn carries(prev: &PrevRecord, atlas: &Atlas) -> Result<(), String> {
     if prev.atlas != format!("{:016x}", atlas_hash(atlas)) {
         return Err(
             "the edit moves the atlas's charts (new or reshaped meshes are not packed into PREV's free space yet)"
@@ -292,7 +282,7 @@ pub fn carries(prev: &PrevRecord, atlas: &Atlas) -> Result<Vec<PageCarry>, Strin
     if prev.pages.len() != atlas.pages.len() {
         return Err("PREV's pages do not read".into());
     }
-    Ok(prev.pages.clone())
+    Ok(())
 }
 
 /// Per receiver: whether an edit can change what its rays see, by the
@@ -307,39 +297,16 @@ pub fn dirty(
     space: &BakeSpace,
     max_distance: f32,
 ) -> Vec<bool> {
-    if boxes.iter().any(Option::is_none) {
+    let Some(boxes) = boxes_in(boxes, space) else {
         return vec![true; receivers.len()];
-    }
-    let to_bake = |p: DVec3| (p - space.center) / space.diagonal;
-    let boxes: Vec<(DVec3, DVec3)> = (boxes.iter().flatten())
-        .map(|b| {
-            let lo = to_bake(DVec3::new(b[0], b[1], b[2]));
-            let hi = to_bake(DVec3::new(b[3], b[4], b[5]));
-            (lo, hi)
-        })
-        .collect();
+    };
     // The ray origin's offset along the normal is 1e-5 of the diagonal at
     // most (the contract's); a thousandth more for rounding.
     let reach = (max_distance as f64 + 2e-5) * (1.0 + 1e-3) + 1e-6;
     (receivers.position.par_iter())
         .with_min_len(4096)
-        .map(|p| {
-            let p = p.as_dvec3();
-            boxes.iter().any(|(lo, hi)| {
-                let d = (*lo - p).max(p - *hi).max(DVec3::ZERO);
-                d.length() <= reach
-            })
-        })
+        .map(|p| within(p.as_dvec3(), p.as_dvec3(), &boxes, reach))
         .collect()
-}
-
-/// An [`Encoded`]'s ranges as a carry would give them back.
-pub fn ranges_of(e: &Encoded) -> Ranges {
-    Ranges {
-        sh_scale: e.sh_scale,
-        sh_offset: e.sh_offset,
-        visibility: (e.visibility.as_ref()).map(|v| (v.scale.clone(), v.offset.clone())),
-    }
 }
 
 #[cfg(test)]

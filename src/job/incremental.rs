@@ -124,10 +124,10 @@ pub(crate) fn level(job: &mut Job, plan: &mut Plan) -> Result<(Level, Vec<Option
     let (scene, s, run) = (job.scene, job.settings, job.run);
     let space = plan.carried.as_ref().map(|r| r.space);
     let mut level = Level::build(scene, s, run, space, &mut job.timer)?;
-    if let (Some(record), Some(r)) = (&plan.carried, &mut plan.reused) {
+    if let (Some(record), Some(r)) = (&mut plan.carried, &mut plan.reused) {
         match carry::carries(record, &level.atlas) {
-            Ok(pages) => {
-                job.carry = Some(pages);
+            Ok(()) => {
+                job.carry = Some(std::mem::take(&mut record.pages));
                 let boxes = (r.nodes.as_ref()).map(|n| n.boxes.clone());
                 job.edit = Some((boxes.unwrap_or_default(), 0));
                 r.carried = true;
@@ -141,8 +141,12 @@ pub(crate) fn level(job: &mut Job, plan: &mut Plan) -> Result<(Level, Vec<Option
         }
     }
     let pages = level.page_count() as usize;
-    let from_prev = match (&job.carry, &job.edit) {
-        (Some(carries), Some((boxes, _))) if plan.rebake == Rebake::Changed => {
+    // PREV's images leave the carry (which every baked page copies): a
+    // page no ray of the edit reaches takes them, the others drop them.
+    let mut from_prev = vec![None; pages];
+    if let Some(carries) = &mut job.carry {
+        let images: Vec<Option<Encoded>> = carries.iter_mut().map(|c| c.images.take()).collect();
+        if let (Some((boxes, _)), Rebake::Changed) = (&job.edit, plan.rebake) {
             let dirty = carry::dirty_pages(
                 &level.geometry,
                 &level.atlas,
@@ -150,30 +154,29 @@ pub(crate) fn level(job: &mut Job, plan: &mut Plan) -> Result<(Level, Vec<Option
                 boxes,
                 level.max_distance,
             );
-            let images: Vec<Option<Encoded>> = (carries.iter().zip(&dirty))
-                .map(|(c, &d)| if d { None } else { c.images.clone() })
+            from_prev = (images.into_iter().zip(&dirty))
+                .map(|(e, &d)| if d { None } else { e })
                 .collect();
-            job.across_pages = Some(images.iter().map(Option::is_none).collect());
-            images
+            job.across_pages = Some(from_prev.iter().map(Option::is_none).collect());
         }
-        _ => vec![None; pages],
-    };
+    }
     Ok((level, from_prev))
 }
 
 impl Plan {
-    /// The report's `reuse` once the pages are baked (`done`; `from_prev`
-    /// as [`level`] gave it; `dirty`: the receivers the edit reached).
+    /// The report's `reuse` once the pages are baked (`done`;
+    /// `pages_reused`: those taken from PREV; `dirty`: the receivers the
+    /// edit reached).
     pub(crate) fn finish(
         self,
         done: &[PageDone],
-        from_prev: &[Option<Encoded>],
+        pages_reused: usize,
         dirty: Option<usize>,
     ) -> Option<ReuseReport> {
         let mut r = self.reused?;
         r.texels_baked = done.iter().map(|d| d.texels).sum();
         r.texels_dirty = dirty.unwrap_or(r.texels_baked);
-        r.pages_reused = from_prev.iter().filter(|e| e.is_some()).count();
+        r.pages_reused = pages_reused;
         Some(r)
     }
 }

@@ -214,12 +214,13 @@ impl<'a> Job<'a> {
         output_dir: Option<&Path>,
     ) -> Result<(Vec<u8>, Vec<String>)> {
         let mut closed = Vec::new();
-        let seams: Vec<_> = match &self.across_pages {
-            None => level.cross_seams.clone(),
+        let seams: std::borrow::Cow<[_]> = match &self.across_pages {
+            None => (&level.cross_seams[..]).into(),
             Some(solve) => (level.cross_seams.iter())
                 .filter(|s| s.page.iter().all(|&p| solve[p as usize]))
                 .cloned()
-                .collect(),
+                .collect::<Vec<_>>()
+                .into(),
         };
         if !seams.is_empty() {
             self.timer.restart();
@@ -382,7 +383,8 @@ pub fn bake_reusing(
     job.timer.lap("save");
     let dirty = job.edit.take().map(|(_, dirty)| dirty);
     let mut report = job.report(&level, &done, warnings, Some(input));
-    report.reuse = plan.finish(&done, &from_prev, dirty);
+    let pages_reused = from_prev.iter().filter(|e| e.is_some()).count();
+    report.reuse = plan.finish(&done, pages_reused, dirty);
     Ok(report)
 }
 

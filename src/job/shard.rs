@@ -75,10 +75,7 @@ pub fn bake_shard(
     let mut recorded = s.clone();
     recorded.device = level.backend.device();
     let (settings, settings_bytes) = settings_json(&recorded);
-    let space = plan.carried.as_ref().map(|r| {
-        let c = r.space.center;
-        [c.x, c.y, c.z, r.space.diagonal]
-    });
+    let space = plan.carried.as_ref().map(|r| r.space.to_array());
     let header = PartialHeader {
         format: FORMAT,
         identity: identity(&bytes, &settings_bytes, shard.count, level.page_count()),
@@ -108,10 +105,8 @@ pub fn bake_shard(
     let dirty = job.edit.take().map(|(_, dirty)| dirty);
     let mut report = job.report(&level, &done, warnings, Some(input));
     report.shard = Some(shard);
-    let mine_prev: Vec<Option<Encoded>> = (mine.iter())
-        .map(|&k| from_prev[k as usize].clone())
-        .collect();
-    report.reuse = plan.finish(&done, &mine_prev, dirty);
+    let pages_reused = mine.len() - to_bake.len();
+    report.reuse = plan.finish(&done, pages_reused, dirty);
     Ok((path, report))
 }
 
@@ -160,10 +155,7 @@ pub fn merge(output: &Path) -> Result<Merged> {
     job.input_hash = Some(super::reuse::input_hash(&bytes, &scene.doc));
     // With `--reuse`: the level in the bake space the shards took from
     // PREV, and the pass across pages over the pages they baked.
-    let space = reference.space.map(|[x, y, z, diagonal]| BakeSpace {
-        center: glam::DVec3::new(x, y, z),
-        diagonal,
-    });
+    let space = reference.space.map(BakeSpace::from_array);
     let level = Level::build(&scene, &on_cpu, &run, space, &mut job.timer)?;
     let from_prev: Vec<u32> = (set.partials.iter())
         .flat_map(|(_, p)| p.header.from_prev.iter().copied())
