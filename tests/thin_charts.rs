@@ -146,3 +146,19 @@ fn a_bad_minimum_width_is_refused_by_name() {
         );
     }
 }
+
+/// The flight helmet at 1024 (the bundled copy) unwraps into no more
+/// charts than modern xatlas gives it with its default chart options
+/// (3,802: `../shared/tools/eval/xatlas_atlas.py`, padding 2, the densest
+/// fit on one page), at no fewer texels per unit than the 485 our
+/// unwrapper gave it before its segmentation was loosened (issue 64;
+/// `docs/measurements/chart-count.md`).
+#[test]
+fn the_helmet_unwraps_into_fewer_charts_than_xatlas_gives_it() {
+    let sc = common::bundled_scene("flight_helmet.glb");
+    let s = settings(1024, 16, None);
+    let level = Level::new(&sc, &s, &RunOptions::QUIET, &mut StageTimer::new()).unwrap();
+    let (charts, density) = (level.atlas.charts, level.texel_density());
+    assert!(charts <= 3_802, "{charts} charts");
+    assert!(density >= 485.0, "{density} texels per unit");
+}
