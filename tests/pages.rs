@@ -572,9 +572,10 @@ fn many_charts(n: usize) -> aobake::gltf::Scene {
 fn a_resolution_too_small_for_the_charts_relaxes_padding_with_a_warning() {
     // 300 charts: with padding 2 and charts at least 2 texels wide each
     // takes 6 x 6 texels at the least (10,800 in all), with padding 1 and
-    // width 1, 3 x 3 (2,700), without padding 1. A 64 x 64 page (4,096)
-    // holds them with padding 1, a 32 x 32 one (1,024) only without
-    // padding, a 16 x 16 one (256) not at all.
+    // width 1 or none, 3 x 3 (2,700), without padding 1. A 64 x 64 page
+    // (4,096) holds them with padding 1 (and width 1, the first tried), a
+    // 32 x 32 one (1,024) only without padding (and then without width,
+    // which the ladder drops first), a 16 x 16 one (256) not at all.
     let sc = many_charts(300);
     let bake = |r: u32| {
         let mut s = common::settings(r, 16, Some(1.0));
@@ -582,12 +583,12 @@ fn a_resolution_too_small_for_the_charts_relaxes_padding_with_a_warning() {
         s.min_chart_width = 2.0;
         aobake::bake_scene(&sc, &s)
     };
-    for (r, padding) in [(64, 1), (32, 0)] {
+    for (r, padding, width) in [(64, 1, 1), (32, 0, 0)] {
         let b = bake(r).unwrap_or_else(|e| panic!("{r}: {e}"));
         assert_eq!(b.atlas.pages.len(), 1, "{r}");
         assert!(b.atlas.width <= r && b.atlas.height <= r);
         assert_eq!(b.atlas.relaxed.map(|x| x.padding), Some(padding), "{r}");
-        let said = format!("packed with padding {padding} and minimum chart width 1");
+        let said = format!("packed with padding {padding} and minimum chart width {width}");
         assert!(
             b.report.warnings.iter().any(|w| w.contains(&said)),
             "{r}: {:?}",

@@ -98,12 +98,18 @@ pub const STARVED_GAIN: f64 = 2.0;
 /// need more than one page with the `padding` and `min_chart_width` asked
 /// for: one texel of padding (charts two apart, so a bilinear lookup at a
 /// chart's edge still reads its own gutter) and charts at least one texel
-/// wide; then no padding (neighbouring charts' texels touch: lookups at
-/// chart edges blend them, which the warning says). Only options smaller
-/// than those asked are tried.
+/// wide; then the same padding and no minimum width; then neither (the
+/// neighbouring charts' texels touch: lookups at chart edges blend them,
+/// which the warning says). Where one texel of padding does not fit, the
+/// width goes before the padding: the stretched charts and the bent
+/// strips cut into pieces cost texels such a page cannot spare (the flight
+/// helmet at 128: engine view 0.0966 without padding and width, 0.1069
+/// with width 1; at 256 without padding 0.0642 and 0.0694;
+/// `docs/measurements/chart-count.md`). Only options smaller than those
+/// asked are tried.
 pub fn relaxed_options(padding: u32, min_chart_width: f32) -> Vec<Relaxed> {
     let width = min_chart_width.min(1.0);
-    let mut options = [(padding.min(1), width), (0, width)]
+    let mut options = [(padding.min(1), width), (padding.min(1), 0.0), (0, 0.0)]
         .into_iter()
         .filter(|&(p, w)| p < padding || w < min_chart_width)
         .map(|(padding, min_chart_width)| Relaxed {
@@ -112,7 +118,7 @@ pub fn relaxed_options(padding: u32, min_chart_width: f32) -> Vec<Relaxed> {
             starved: false,
         })
         .collect::<Vec<_>>();
-    // (Asked without padding, both are the same.)
+    // (Asked without padding or width, some are the same.)
     options.dedup();
     options
 }
@@ -408,12 +414,22 @@ mod tests {
             min_chart_width,
             starved: false,
         };
-        assert_eq!(relaxed_options(2, 2.0), vec![r(1, 1.0), r(0, 1.0)]);
-        assert_eq!(relaxed_options(3, 0.5), vec![r(1, 0.5), r(0, 0.5)]);
-        assert_eq!(relaxed_options(1, 1.0), vec![r(0, 1.0)]);
-        assert_eq!(relaxed_options(1, 2.0), vec![r(1, 1.0), r(0, 1.0)]);
-        assert_eq!(relaxed_options(0, 3.0), vec![r(0, 1.0)]);
-        assert_eq!(relaxed_options(0, 1.0), vec![]);
+        assert_eq!(
+            relaxed_options(2, 2.0),
+            vec![r(1, 1.0), r(1, 0.0), r(0, 0.0)]
+        );
+        assert_eq!(
+            relaxed_options(3, 0.5),
+            vec![r(1, 0.5), r(1, 0.0), r(0, 0.0)]
+        );
+        assert_eq!(relaxed_options(1, 1.0), vec![r(1, 0.0), r(0, 0.0)]);
+        assert_eq!(
+            relaxed_options(1, 2.0),
+            vec![r(1, 1.0), r(1, 0.0), r(0, 0.0)]
+        );
+        assert_eq!(relaxed_options(1, 0.0), vec![r(0, 0.0)]);
+        assert_eq!(relaxed_options(0, 3.0), vec![r(0, 1.0), r(0, 0.0)]);
+        assert_eq!(relaxed_options(0, 1.0), vec![r(0, 0.0)]);
         assert_eq!(relaxed_options(0, 0.0), vec![]);
     }
 }
