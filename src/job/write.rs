@@ -67,9 +67,11 @@ pub fn write(
                 s.min_chart_width,
                 100.0 * crate::atlas::unwrap::STARVED_UTILIZATION
             ),
+            // (No count: the atlas's is the relaxed packing's, and without
+            // a minimum width the bent strips are not cut into pieces.)
             false => format!(
-                "the {} charts do not fit one {r}x{r} page with padding {} and minimum chart width {}",
-                level.atlas.charts, s.padding, s.min_chart_width
+                "the charts do not fit one {r}x{r} page with padding {} and minimum chart width {}",
+                s.padding, s.min_chart_width
             ),
         };
         warnings.push(format!(
