@@ -100,13 +100,11 @@ pub const STARVED_GAIN: f64 = 2.0;
 /// chart's edge still reads its own gutter) and charts at least one texel
 /// wide; then the same padding and no minimum width; then neither (the
 /// neighbouring charts' texels touch: lookups at chart edges blend them,
-/// which the warning says). Where one texel of padding does not fit, the
-/// width goes before the padding: the stretched charts and the bent
-/// strips cut into pieces cost texels such a page cannot spare (the flight
-/// helmet at 128: engine view 0.0966 without padding and width, 0.1069
-/// with width 1; at 256 without padding 0.0642 and 0.0694;
-/// `docs/measurements/chart-count.md`). Only options smaller than those
-/// asked are tried.
+/// which the warning says). The width goes before the padding: on a page
+/// that tight, the stretched charts and the bent strips cut into pieces
+/// cost more texels than they give back, while a texel of padding keeps
+/// every lookup on its own chart (`docs/measurements/chart-count.md`,
+/// small pages). Only options smaller than those asked are tried.
 pub fn relaxed_options(padding: u32, min_chart_width: f32) -> Vec<Relaxed> {
     let width = min_chart_width.min(1.0);
     let mut options = [(padding.min(1), width), (padding.min(1), 0.0), (0, 0.0)]

@@ -28,11 +28,10 @@ use std::collections::BinaryHeap;
 const NORMAL_DEVIATION_WEIGHT: f64 = 2.0;
 const ROUNDNESS_WEIGHT: f64 = 0.01;
 const STRAIGHTNESS_WEIGHT: f64 = 6.0;
-/// aobake's patch (PATCHES.md): 1 and 3 where the published crate has 4
-/// and 2. A chart's edge is a border band at lightmap density, so a
-/// looser growth pays for itself at our texel density: fewer, larger
-/// charts over smooth curved parts (the flight helmet under xatlas's
-/// count), the minimum chart width unchanged.
+// CREASE_WEIGHT and MAX_COST: aobake's patch (PATCHES.md), 1 and 3 where
+// the published crate has 4 and 2. A chart's edge is a border band at
+// lightmap density, so a looser growth pays for itself there: fewer,
+// larger charts over smooth curved parts.
 const CREASE_WEIGHT: f64 = 1.0;
 const MAX_COST: f64 = 3.0;
 /// Rounds of normal smoothing before segmentation.
