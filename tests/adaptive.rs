@@ -306,3 +306,62 @@ fn the_border_fit_costs_no_more_as_the_quality_drops() {
     assert!(r[1] <= r[0] && r[2] <= r[1], "{r:?}");
     assert!(r[2] < r[0], "{r:?}");
 }
+
+#[test]
+fn a_part_of_a_page_bakes_to_the_whole_pages_values_a_halo_inside_it() {
+    // The flight helmet at 128 with the visibility layer: the part is the
+    // receivers within the halo of a window of the page; every receiver
+    // of the window must get the whole page's value bit for bit, and
+    // without the halo some must not (the neighbours feed the filter).
+    let sc = bundled_scene("flight_helmet.glb");
+    let mut s = adaptive(128, 64, None);
+    s.visibility = aobake::job::settings::VisibilityMode::All;
+    let (quiet, mut timer) = (&aobake::RunOptions::QUIET, aobake::stage::StageTimer::new());
+    let level = aobake::job::Level::new(&sc, &s, quiet, &mut timer).expect("level");
+    let mut page = level.page(0, &sc, &mut timer).expect("page");
+    let whole = page.bake(&s, quiet, &mut timer).expect("whole");
+    // The allocation's scale is the whole page's (PREV's, in a rebake).
+    page.carry.scale = whole.adaptive_stats.expect("adaptive").scale;
+    let whole = whole.bake;
+    let r = &page.receivers;
+    let w = r.width as i64;
+    let (x0, x1, y0, y1) = (40i64, 72, 30, 70);
+    let distance = |t: u32| {
+        let (x, y) = (t as i64 % w, t as i64 / w);
+        (x0 - x)
+            .max(x - (x1 - 1))
+            .max(y0 - y)
+            .max(y - (y1 - 1))
+            .max(0)
+    };
+    let halo = aobake::bake::adaptive::PageWide::halo(&s.adaptive) as i64;
+    let mut differing = |grow: i64| {
+        let part: Vec<u32> = (0..r.len() as u32)
+            .filter(|&i| distance(r.texel[i as usize]) <= grow)
+            .collect();
+        let (_, passes) = page.bake_part(&part, &s, quiet, &mut timer).expect("part");
+        let (b, layer) = (&passes.bake, whole.visibility.as_ref().expect("layer"));
+        let (mut window, mut differ) = (0, 0);
+        for (k, &i) in part.iter().enumerate() {
+            if distance(r.texel[i as usize]) > 0 {
+                continue;
+            }
+            let i = i as usize;
+            window += 1;
+            let v = &b.visibility.as_ref().expect("layer").v[k];
+            let same = b.ao[k].to_bits() == whole.ao[i].to_bits()
+                && b.sh[k].map(f32::to_bits) == whole.sh[i].map(f32::to_bits)
+                && v.map(f32::to_bits) == layer.v[i].map(f32::to_bits);
+            differ += !same as usize;
+        }
+        (window, differ)
+    };
+    let (window, differ) = differing(halo);
+    assert!(window > 300, "{window} receivers in the window");
+    assert_eq!(
+        differ, 0,
+        "{differ} of {window} receivers differ with the halo"
+    );
+    let (_, differ) = differing(0);
+    assert!(differ > 0, "without the halo every receiver matched");
+}

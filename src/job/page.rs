@@ -165,7 +165,54 @@ impl Page<'_> {
         run: &RunOptions,
         timer: &mut StageTimer,
     ) -> Result<BakePasses> {
-        let (receivers, tracer) = (&self.receivers, &self.level.tracer);
+        let page = adaptive::PageWide {
+            scale: self.carry.scale,
+            depths: None,
+        };
+        self.bake_receivers(&self.receivers, page, s, run, timer)
+    }
+
+    /// [`Page::bake`] of the receivers `part` (indices into the page's,
+    /// ascending) alone, for the texels an edit reaches (`--reuse`): each
+    /// of them at least [`adaptive::PageWide::halo`] texels inside the
+    /// part gets the value the whole page's bake gives it. The part's
+    /// receivers, and their bake. Monte Carlo's receivers are their own
+    /// rays alone; the sheared filter's cells are page-wide (an error).
+    pub fn bake_part(
+        &self,
+        part: &[u32],
+        s: &BakeSettings,
+        run: &RunOptions,
+        timer: &mut StageTimer,
+    ) -> Result<(Receivers, BakePasses)> {
+        if s.method == Method::Sheared {
+            return Err(Error::option_conflict(
+                "method",
+                "the sheared filter bakes whole pages only",
+            ));
+        }
+        let receivers = self.receivers.permuted(part);
+        let page = adaptive::PageWide {
+            scale: self.carry.scale,
+            depths: Some(adaptive::Depths::of(
+                &self.receivers.footprint,
+                &s.adaptive,
+                self.level.max_distance,
+            )),
+        };
+        let passes = self.bake_receivers(&receivers, page, s, run, timer)?;
+        Ok((receivers, passes))
+    }
+
+    fn bake_receivers(
+        &self,
+        receivers: &Receivers,
+        page: adaptive::PageWide,
+        s: &BakeSettings,
+        run: &RunOptions,
+        timer: &mut StageTimer,
+    ) -> Result<BakePasses> {
+        let tracer = &self.level.tracer;
         let params = BakeParams {
             max_distance: self.level.max_distance,
             seed: page_seed(s.seed, self.page),
@@ -197,7 +244,7 @@ impl Page<'_> {
                     s.fill_inside,
                     layer,
                     &s.adaptive,
-                    self.carry.scale,
+                    page,
                     &params,
                     timer,
                     &progress,

@@ -46,6 +46,7 @@ pub(crate) mod width;
 
 pub use allocation::Scale;
 pub use options::{AdaptiveOptions, MAX_ADAPTIVE_RAYS, MAX_REACH};
+pub use width::Depths;
 
 use super::visibility as vis;
 use super::{Bake, BakeParams};
@@ -56,6 +57,31 @@ use crate::trace::Tracer;
 use filter::FilterSupport;
 use grid::TexelGrid;
 use rayon::prelude::*;
+
+/// What a bake takes from the whole page, or from an earlier bake, rather
+/// than from its own receivers. A bake of part of a page (`--reuse`: only
+/// the texels an edit reaches, with a halo of [`Self::halo`] texels) given
+/// the whole page's gives every receiver deeper than the halo the value
+/// the whole page's bake gives it: every other input of a receiver is its
+/// own rays (keyed by its texel) and its neighbours' within the halo.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PageWide {
+    /// The allocation's scale (an earlier bake's, `--reuse`).
+    pub scale: Option<Scale>,
+    /// The pre-pass's depths ([`Depths::of`] the whole page).
+    pub depths: Option<Depths>,
+}
+
+impl PageWide {
+    /// How far (Chebyshev, texels) a receiver's value reads other
+    /// receivers' pre-pass: the bounds spread z_min and the visibility
+    /// over the neighbourhood (`max_reach`), N_eff over that (`max_reach`
+    /// again), the filter averages over its support (`max_reach`), and a
+    /// margin of 2 texels.
+    pub fn halo(o: &AdaptiveOptions) -> u32 {
+        3 * o.max_reach + 2
+    }
+}
 
 /// What the adaptive bake did.
 #[derive(Clone, Debug, Default)]
@@ -118,8 +144,8 @@ impl AdaptiveStats {
 /// receivers inside geometry ([`super::validity`], from the pre-pass's
 /// rays; they get the pre-pass only and neither lend nor receive in the
 /// filter), returned in [`AdaptiveStats::inside`]. Options validated.
-/// `carried`: the allocation's page [`Scale`] to use instead of finding
-/// it (an earlier bake's, `--reuse`); the one used is in
+/// `page`: what to take from the whole page or an earlier bake instead
+/// of finding it from `receivers` ([`PageWide`]); the scale used is in
 /// [`AdaptiveStats::scale`].
 /// Laps: `pre-pass`, `bounds`, `adaptive pass`, `filter`, and with the
 /// layer `visibility pass`, `visibility filter`.
@@ -130,13 +156,15 @@ pub fn bake(
     fill_inside: bool,
     visibility: bool,
     o: &AdaptiveOptions,
-    carried: Option<Scale>,
+    page: PageWide,
     p: &BakeParams,
     timer: &mut StageTimer,
     progress: &(dyn Fn(u64) + Sync),
 ) -> (Bake, AdaptiveStats) {
     let n = receivers.len();
-    let pre = prepass::pre_pass(receivers, tracer, fill_inside, o, p);
+    let depths =
+        (page.depths).unwrap_or_else(|| Depths::of(&receivers.footprint, o, p.max_distance));
+    let pre = prepass::pre_pass(receivers, tracer, fill_inside, o, depths, p);
     timer.lap("pre-pass");
 
     // The bounds' working arrays end with their stage (the memory
@@ -144,7 +172,7 @@ pub fn bake(
     let grid = TexelGrid::new(receivers);
     let b = bounds::bounds(receivers, &grid, &pre, o);
     let scale =
-        carried.unwrap_or_else(|| allocation::allocation_scale(&b.filtered, &b.unfiltered, o));
+        (page.scale).unwrap_or_else(|| allocation::allocation_scale(&b.filtered, &b.unfiltered, o));
     let rays: Vec<u32> = allocation::counts(&b.filtered, &b.unfiltered, scale, o)
         .into_iter()
         .map(|t| t.max(o.pre_rays))

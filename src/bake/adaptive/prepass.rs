@@ -14,9 +14,9 @@
 //! the adaptive method needs no stage of its own for it. Rays outside
 //! that test ask only for the distances z_min can use: below the
 //! receiver's running z_min and below the depth where every receiver's
-//! filter is at its widest ([`exact_depth`]); deeper, a hit is only a
+//! filter is at its widest ([`exact_depth`](super::width::exact_depth)); deeper, a hit is only a
 //! hit. Below the depth where every receiver is in contact
-//! ([`contact_depth`]) a receiver's z_min bounds nothing a nearer one
+//! ([`contact_depth`](super::width::contact_depth)) a receiver's z_min bounds nothing a nearer one
 //! would not, so its further rays ask only for any hit. Same bounds and
 //! sums as full closest-hit queries (byte-identical output; own z_min of
 //! contact receivers may stay above their nearest hit, below the contact
@@ -28,7 +28,7 @@
 use super::options::AdaptiveOptions;
 use super::strata::{STRATA_WORDS, Strata};
 use super::sums::{CHUNK, RaySums};
-use super::width::{contact_depth, exact_depth};
+use super::width::Depths;
 use crate::atlas::Receivers;
 use crate::bake::validity::{self, BackFaces};
 use crate::bake::{BakeParams, ReceiverRays};
@@ -41,7 +41,7 @@ use rayon::prelude::*;
 pub struct PrePass {
     pub sums: Vec<RaySums>,
     /// Own z_min, bake units (INFINITY: nothing hit; below
-    /// [`contact_depth`] a bound, not the nearest hit).
+    /// [`contact_depth`](super::width::contact_depth) a bound, not the nearest hit).
     pub own_z: Vec<f32>,
     /// Pairs of neighbouring strata whose rays disagree.
     pub crossings: Vec<u16>,
@@ -78,12 +78,12 @@ pub(crate) fn pre_pass(
     tracer: &Tracer,
     fill_inside: bool,
     o: &AdaptiveOptions,
+    depths: Depths,
     p: &BakeParams,
 ) -> PrePass {
     let n = receivers.len();
     let strata = Strata::of(o.pre_rays);
-    let exact = exact_depth(&receivers.footprint, o, p.max_distance);
-    let contact = contact_depth(&receivers.footprint, o);
+    let Depths { exact, contact } = depths;
     // Without single-sided triangles no receiver is inside: no face to test.
     let test_faces = fill_inside && tracer.has_single_sided();
     let words = (o.pre_rays as usize).div_ceil(64).clamp(1, STRATA_WORDS);

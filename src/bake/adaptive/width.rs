@@ -63,6 +63,27 @@ pub fn exact_depth(footprint: &[f32], o: &AdaptiveOptions, max_distance: f32) ->
     }
 }
 
+/// The two page-wide depths the pre-pass cuts its rays at, from every
+/// receiver's footprint on the page ([`exact_depth`], [`contact_depth`]).
+/// A bake of part of a page (`--reuse`: only the texels an edit reaches)
+/// takes them from the whole page, so its receivers trace what the whole
+/// page's bake traces.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Depths {
+    pub exact: f32,
+    pub contact: f32,
+}
+
+impl Depths {
+    /// The depths of a page whose receivers have these footprints.
+    pub fn of(footprint: &[f32], o: &AdaptiveOptions, max_distance: f32) -> Depths {
+        Depths {
+            exact: exact_depth(footprint, o, max_distance),
+            contact: contact_depth(footprint, o),
+        }
+    }
+}
+
 /// The depth below which every receiver of the atlas is in contact
 /// ([`sigma_in_texels`] 0 for its footprint, whoever's filter asks): the
 /// smallest footprint's contact edge, fp mu Omega_h, less a rounding
