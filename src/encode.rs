@@ -12,6 +12,7 @@ use crate::atlas::Receivers;
 use crate::bake::adaptive::Scale;
 use crate::error::{Error, Result};
 use crate::lightmap::Lightmap;
+use crate::lightmap::seams::SolveRange;
 use crate::sh::{SH_COUNT, VIS_COUNT};
 use image::ImageEncoder;
 use rayon::prelude::*;
@@ -28,6 +29,9 @@ pub struct Encoded {
     /// The adaptive allocation's page scale the page was baked with (not
     /// an image: recorded in the fingerprint for a later `--reuse`).
     pub scale: Option<Scale>,
+    /// The range the lightmap stage's solve kept the page in (not an
+    /// image: recorded in the fingerprint for a later `--reuse`).
+    pub solve_range: Option<SolveRange>,
 }
 
 /// Each channel's scale and offset, taken from an earlier bake of the
@@ -220,6 +224,7 @@ pub fn encode_in(lm: &Lightmap, visibility_order: u32, ranges: Option<&Ranges>) 
         sh_offset,
         visibility,
         scale: None,
+        solve_range: None,
     })
 }
 

@@ -182,7 +182,7 @@ fn solve_free(
         .iter()
         .map(|&a| std::array::from_fn(|i| if i == 0 { K0 as f32 * a } else { 0.0 }))
         .collect();
-    let report = stitch_page(
+    let (report, _) = stitch_page(
         seams,
         &[],
         &fitted,
@@ -193,6 +193,7 @@ fn solve_free(
         h,
         aobake::lightmap::Filter::Bilinear,
         free,
+        None,
         ao,
         &mut sh,
         None,

@@ -396,6 +396,7 @@ mod tests {
                 sh_offset: [0.0; SH_COUNT],
                 visibility: None,
                 scale: None,
+                solve_range: None,
             }
         };
         let size = PageSize {

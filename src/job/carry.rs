@@ -25,6 +25,7 @@ use crate::bake::adaptive::Scale;
 use crate::bits::mix64;
 use crate::encode::{Encoded, EncodedVisibility, Ranges};
 use crate::geometry::{BakeGeometry, BakeSpace};
+use crate::lightmap::seams::SolveRange;
 use crate::lightmap::seams::find::CrossSeam;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -37,6 +38,8 @@ pub struct PageCarry {
     pub scale: Option<Scale>,
     /// Each channel's scale and offset.
     pub ranges: Option<Ranges>,
+    /// The lightmap stage's solve's range ([`SolveRange`]).
+    pub solve_range: Option<SolveRange>,
     /// PREV's images of the page as written, for a page no edit reaches
     /// (`None` when they do not read).
     pub images: Option<Encoded>,
@@ -92,6 +95,18 @@ pub fn scales_json(pages: &[&Encoded]) -> Value {
         .collect()
 }
 
+/// The fingerprint's `solveRanges`: per page `[lo, hi]`, each channel's
+/// lowest and highest value before the solve, or null (no border fit, or
+/// a value JSON cannot hold).
+pub fn solve_ranges_json(pages: &[&Encoded]) -> Value {
+    (pages.iter())
+        .map(|e| match &e.solve_range {
+            Some(r) if r.lo.iter().chain(&r.hi).all(|x| x.is_finite()) => json!([r.lo, r.hi]),
+            _ => Value::Null,
+        })
+        .collect()
+}
+
 /// PREV's record, from its JSON and BIN chunk; `None` when its
 /// fingerprint has no `atlas` (an older aobake's) or the pages' fields do
 /// not read.
@@ -118,6 +133,19 @@ pub fn read(json: &Value, bin: &[u8]) -> Option<PrevRecord> {
             })
         })
         .collect::<Option<_>>()?;
+    // Absent in an older aobake's output: nothing carried.
+    let ranges = f.get("solveRanges").and_then(Value::as_array);
+    for (page, r) in pages.iter_mut().zip(ranges.into_iter().flatten()) {
+        let floats = |v: Option<&Value>| -> Option<Vec<f32>> {
+            (v?.as_array()?.iter())
+                .map(|x| x.as_f64().map(|x| x as f32))
+                .collect()
+        };
+        page.solve_range = match (floats(r.get(0)), floats(r.get(1))) {
+            (Some(lo), Some(hi)) if lo.len() == hi.len() => Some(SolveRange { lo, hi }),
+            _ => None,
+        };
+    }
     // Every baked primitive holds its page's ranges; the first read of a
     // page gives them, a later one with the layer adds the layer's.
     let prims = (json.get("meshes")?.as_array()?.iter())
@@ -198,6 +226,7 @@ fn page_images(json: &Value, bin: &[u8], p: usize, page: &PageCarry) -> Option<E
         sh_offset: ranges.sh_offset,
         visibility,
         scale: page.scale,
+        solve_range: page.solve_range.clone(),
     })
 }
 
@@ -320,11 +349,14 @@ mod tests {
             margin: 1.0 + 1.0 / 3.0,
         };
         let sh: Vec<f32> = (0..9).map(|i| 0.1 + i as f32 / 7.0).collect();
+        let lo: Vec<f32> = (0..10).map(|i| -1.0 / (3.0 + i as f32)).collect();
+        let hi: Vec<f32> = (0..10).map(|i| 1.0 + 1e-7 * i as f32).collect();
         let json = json!({
             "extensions": {"AOBAKE_lightmap": {"fingerprint": {
                 "space": [0.1, -2.0, 1e-300, 3.5],
                 "atlas": "00000000000000aa",
                 "scales": [[s.log_scale, s.margin], null],
+                "solveRanges": [[lo, hi], null],
             }}},
             "meshes": [{"primitives": [
                 {"extensions": {"AOBAKE_lightmap": {"page": 1, "shScale": sh, "shOffset": sh}}},
@@ -341,6 +373,9 @@ mod tests {
         // The numbers come back to the bit through their JSON.
         assert_eq!(r.pages[0].scale, Some(s));
         assert_eq!(r.pages[1].scale, None);
+        let range = r.pages[0].solve_range.as_ref().unwrap();
+        assert_eq!((&range.lo, &range.hi), (&lo, &hi));
+        assert_eq!(r.pages[1].solve_range, None);
         let ranges = r.pages[0].ranges.as_ref().unwrap();
         assert_eq!(ranges.sh_scale.to_vec(), sh);
         assert_eq!(ranges.visibility, Some((vec![0.5, 0.25], vec![-0.5, 0.0])));

@@ -302,6 +302,7 @@ impl Page<'_> {
                 seed: s.seed,
                 diagonal: level.geometry.space.diagonal,
                 fit_cache: Some(&self.fit_cache),
+                solve_range: self.carry.solve_range.as_ref(),
                 noise_rays: s.noise_rays(),
                 sigma_texels: passes.adaptive_stats.as_ref().map(|a| &a.sigma_texels[..]),
             },
@@ -328,6 +329,7 @@ impl Page<'_> {
         let mut encoded =
             encode::encode_in(&lightmap, s.visibility_order, self.carry.ranges.as_ref())?;
         encoded.scale = passes.adaptive_stats.as_ref().and_then(|a| a.scale);
+        encoded.solve_range = built.solve_range;
         if let Some(dir) = &run.exr_dir {
             let dir = page_dir(dir, self.page);
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;

@@ -57,6 +57,8 @@ pub struct Fingerprint {
     pub atlas: String,
     /// Per page the adaptive allocation's scale ([`carry::scales_json`]).
     pub scales: Value,
+    /// Per page the solve's range ([`carry::solve_ranges_json`]).
+    pub solve_ranges: Value,
 }
 
 /// A node's part of the scene as the bake reads it: the shape of what it
@@ -147,6 +149,7 @@ impl Fingerprint {
             space: carry::space_json(space),
             atlas: hex(carry::atlas_hash(atlas)),
             scales: carry::scales_json(pages),
+            solve_ranges: carry::solve_ranges_json(pages),
         }
     }
 
@@ -160,6 +163,7 @@ impl Fingerprint {
             "space": self.space,
             "atlas": self.atlas,
             "scales": self.scales,
+            "solveRanges": self.solve_ranges,
             "integrity": UNSEALED,
         })
     }
@@ -319,6 +323,7 @@ fn check_file(prev: &[u8], want: &Wanted) -> Result<Value, Why> {
         space: Value::Null,
         atlas: String::new(),
         scales: Value::Null,
+        solve_ranges: Value::Null,
     };
     // The integrity first: an edited file's other fields prove nothing.
     let at = (integrity_at(prev, f))

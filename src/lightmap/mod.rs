@@ -47,7 +47,7 @@ use crate::trace::Tracer;
 pub use border::BorderMode;
 pub use filter::{Filter, bilinear_taps};
 use rayon::prelude::*;
-use seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode, SeamReport};
+use seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode, SeamReport, SolveRange};
 use serde::Serialize;
 
 /// A bicubic page's centre row's weight (`centre_rows`), relative to a
@@ -124,6 +124,9 @@ pub struct PageBake<'a> {
     pub sigma_texels: Option<&'a [f32]>,
     /// The page's traced border fit from an earlier run, if any.
     pub fit_cache: Option<&'a border::FitCache>,
+    /// The solve's range in an earlier bake of the page (`--reuse`), which
+    /// the page's own widens ([`seams::stitch_page`]).
+    pub solve_range: Option<&'a SolveRange>,
     /// The Monte Carlo ray count whose noise the page's values carry
     /// ([`crate::job::settings::BakeSettings::noise_rays`]), which a step
     /// cell must stand out from ([`border::step_span`]); `None` for the
@@ -141,6 +144,8 @@ pub struct Built {
     /// With `seam_maps`: the AO jump at the seams before and after
     /// stitching, one grey byte per texel ([`seams::jump_map`]).
     pub seam_maps: Option<[Vec<u8>; 2]>,
+    /// The range the solve kept the page in (with the border fit).
+    pub solve_range: Option<SolveRange>,
 }
 
 /// Runs the post-bake stages on one page: dilate, spread, the border fit
@@ -167,6 +172,7 @@ pub fn build(
             seams: None,
             border: None,
             seam_maps: None,
+            solve_range: None,
         });
     }
     let stitch = seam_mode == SeamMode::Stitch;
@@ -289,7 +295,7 @@ pub fn build(
         BorderMode::Fit | BorderMode::Band => border::SEAM_SCALE,
         BorderMode::Off => 1.0,
     };
-    let report = seams::stitch_page(
+    let (report, solve_range) = seams::stitch_page(
         &found,
         &anchors,
         &fitted,
@@ -300,6 +306,7 @@ pub fn build(
         h,
         filter,
         &free,
+        p.solve_range,
         &mut lightmap.ao,
         &mut lightmap.sh,
         lightmap.visibility.as_deref_mut(),
@@ -319,6 +326,7 @@ pub fn build(
         seams: stitch.then_some(report),
         border,
         seam_maps,
+        solve_range,
     })
 }
 
@@ -378,7 +386,7 @@ mod tests {
         assert_eq!(rows.len(), n);
         let free = vec![true; n];
         let (ao_out, sh_out) = (&mut lm.ao, &mut lm.sh);
-        let report = seams::stitch_page(
+        let (report, _) = seams::stitch_page(
             &[],
             &[],
             &rows,
@@ -389,6 +397,7 @@ mod tests {
             h,
             Filter::Bicubic,
             &free,
+            None,
             ao_out,
             sh_out,
             None,

@@ -19,6 +19,7 @@
 
 use crate::bake::adaptive::Scale;
 use crate::encode::{Encoded, EncodedVisibility};
+use crate::lightmap::seams::SolveRange;
 use crate::sh::SH_COUNT;
 use serde::{Deserialize, Serialize};
 
@@ -78,6 +79,9 @@ pub struct PageImages {
     /// The adaptive allocation's scale: log2 scale's and margin's bits.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<(u32, u64)>,
+    /// The solve's range: each channel's lowest and highest value's bits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solve_range: Option<(Vec<u32>, Vec<u32>)>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -124,6 +128,7 @@ pub fn write<'a>(mut header: PartialHeader, pages: &[(u32, &'a Encoded)]) -> Vec
                 offset: bits(&v.offset),
             }),
             scale: e.scale.map(|s| (s.log_scale.to_bits(), s.margin.to_bits())),
+            solve_range: (e.solve_range.as_ref()).map(|r| (bits(&r.lo), bits(&r.hi))),
         })
         .collect();
     let sizes: Vec<usize> = owned.iter().map(|b| b.len()).collect();
@@ -212,6 +217,10 @@ pub fn read(bytes: &[u8]) -> Result<Partial, String> {
             scale: p.scale.map(|(l, m)| Scale {
                 log_scale: f32::from_bits(l),
                 margin: f64::from_bits(m),
+            }),
+            solve_range: (p.solve_range.as_ref()).map(|(lo, hi)| SolveRange {
+                lo: floats(lo),
+                hi: floats(hi),
             }),
         };
         pages.push((p.page, encoded));

@@ -59,6 +59,32 @@ pub const SMOOTH_DEGREES: f32 = 10.0;
 /// (`probes/seam_sides`; `docs/measurements/constants.md`, FLAT_DEGREES).
 pub const FLAT_DEGREES: f32 = 20.0;
 
+/// Each channel's lowest and highest value (AO, the SH coefficients, the
+/// visibility layer's) over a page before its solve: the solve keeps
+/// every texel within it ([`stitch_page`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveRange {
+    pub lo: Vec<f32>,
+    pub hi: Vec<f32>,
+}
+
+impl SolveRange {
+    /// The smallest range holding both (`self` alone when their channels
+    /// differ: a carried range of another layer says nothing).
+    pub fn union(&self, other: &SolveRange) -> SolveRange {
+        if self.lo.len() != other.lo.len() {
+            return self.clone();
+        }
+        let pick = |a: &[f32], b: &[f32], f: fn(f32, f32) -> f32| {
+            a.iter().zip(b).map(|(&x, &y)| f(x, y)).collect()
+        };
+        SolveRange {
+            lo: pick(&self.lo, &other.lo, f32::min),
+            hi: pick(&self.hi, &other.hi, f32::max),
+        }
+    }
+}
+
 /// What stitching a page did, for the report.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
 pub struct SeamReport {
@@ -135,7 +161,12 @@ pub(crate) fn write_channels(
 /// where a seam's rows (two-sided, and the anchors) are scaled by
 /// `seam_scale`; `data_weight(t)`: the weight of texel t's data term (1,
 /// less where an edge row holds its value: [`crate::lightmap::edge`]);
-/// `filter`: the lookup every row reads through.
+/// `filter`: the lookup every row reads through. `carried`: an earlier
+/// bake's [`SolveRange`] of the page (`--reuse`), widened by the page's
+/// own, so that a bake of only the texels an edit reaches (whose other
+/// texels hold values inside the carried range) keeps the range a bake of
+/// the whole page keeps. The report, and the range the solve kept (none
+/// without the border fit's points).
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
@@ -148,10 +179,11 @@ pub fn stitch_page(
     height: u32,
     filter: Filter,
     free: &[bool],
+    carried: Option<&SolveRange>,
     ao: &mut [f32],
     sh: &mut [[f32; SH_COUNT]],
     visibility: Option<&mut [[f32; VIS_COUNT]]>,
-) -> SeamReport {
+) -> (SeamReport, Option<SolveRange>) {
     let before = metric::measure(seams, width, height, ao, sh, filter);
     let gap_before = anchor_gap(anchors, width, height, ao, filter);
     let channels = channels(visibility.is_some());
@@ -200,7 +232,7 @@ pub fn stitch_page(
             )
         };
         // (min and max are exact in any order: the same on any thread count.)
-        (0..ao.len())
+        let (lo, hi) = (0..ao.len())
             .into_par_iter()
             .with_min_len(4096)
             .fold(empty, extend)
@@ -208,14 +240,16 @@ pub fn stitch_page(
                 let lo = lo.iter().zip(&l2).map(|(a, b)| a.min(*b)).collect();
                 let hi = hi.iter().zip(&h2).map(|(a, b)| a.max(*b)).collect();
                 (lo, hi)
-            })
+            });
+        let own = SolveRange { lo, hi };
+        carried.map_or_else(|| own.clone(), |c| own.union(c))
     });
     // Where the AO solved falls outside the range, clamping it leaves its
     // neighbours fitted to a value it no longer holds (a step into black:
     // the optimum overshoots on both sides). One step of an active set:
     // those texels keep their clamped values and the free texels within
     // two of them are solved again around them, from their baked values.
-    let again = range.as_ref().and_then(|(lo, hi)| {
+    let again = range.as_ref().and_then(|SolveRange { lo, hi }| {
         let over: Vec<u32> = (texels.iter().enumerate())
             .filter(|&(k, _)| !(lo[0]..=hi[0]).contains(&values[k * channels]))
             .map(|(_, &t)| t)
@@ -263,14 +297,15 @@ pub fn stitch_page(
         ao_before: gap_before,
         ao_after: anchor_gap(anchors, width, height, ao, filter),
     });
-    SeamReport {
+    let report = SeamReport {
         seams: seams.len(),
         length: seams.iter().map(|s| s.length as f64).sum::<f64>() * diagonal,
         before,
         after,
         solve,
         cross_page,
-    }
+    };
+    (report, range)
 }
 
 /// The solve's values (`channels` per texel of `texels`) into the page's
@@ -278,7 +313,7 @@ pub fn stitch_page(
 fn write_solved(
     texels: &[u32],
     values: &[f32],
-    range: Option<&(Vec<f32>, Vec<f32>)>,
+    range: Option<&SolveRange>,
     ao: &mut [f32],
     sh: &mut [[f32; SH_COUNT]],
     mut visibility: Option<&mut [[f32; VIS_COUNT]]>,
@@ -287,7 +322,7 @@ fn write_solved(
     let mut clamped = Vec::new();
     for (k, &t) in texels.iter().enumerate() {
         let (t, mut at) = (t as usize, &values[k * channels..(k + 1) * channels]);
-        if let Some((lo, hi)) = range {
+        if let Some(SolveRange { lo, hi }) = range {
             clamped.clear();
             clamped.extend((0..channels).map(|c| at[c].clamp(lo[c], hi[c])));
             at = &clamped;
