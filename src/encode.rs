@@ -32,6 +32,10 @@ pub struct Encoded {
     /// The range the lightmap stage's solve kept the page in (not an
     /// image: recorded in the fingerprint for a later `--reuse`).
     pub solve_range: Option<SolveRange>,
+    /// The page's receivers inside geometry, as runs of texels
+    /// `[first, count, ...]` in row-major order (not an image: recorded in
+    /// the fingerprint for a later `--reuse`; `None`: not recorded).
+    pub inside: Option<Vec<u32>>,
 }
 
 /// Each channel's scale and offset, taken from an earlier bake of the
@@ -225,6 +229,7 @@ pub fn encode_in(lm: &Lightmap, visibility_order: u32, ranges: Option<&Ranges>) 
         visibility,
         scale: None,
         solve_range: None,
+        inside: None,
     })
 }
 

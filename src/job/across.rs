@@ -397,6 +397,7 @@ mod tests {
                 visibility: None,
                 scale: None,
                 solve_range: None,
+                inside: None,
             }
         };
         let size = PageSize {

@@ -3,22 +3,27 @@
 //! global to a page, so that a texel far from the edit comes out of the
 //! new bake as it came out of PREV's.
 //!
-//! In: PREV's JSON (its fingerprint's `space`, `atlas` and `scales`, every baked
-//! primitive's `shScale`, `shOffset` and visibility ranges), the new
-//! level's atlas. Out: per page a [`PageCarry`] (the adaptive
-//! allocation's [`Scale`], each channel's [`Ranges`]) when the new atlas
-//! is PREV's, else why not; and for every output the fingerprint's
-//! `atlas` hash and `scales` ([`atlas_hash`], [`scales_json`]).
+//! In: PREV's JSON (its fingerprint's `space`, `atlas`, `scales`,
+//! `solveRanges` and `inside`, every baked primitive's `shScale`,
+//! `shOffset` and visibility ranges), the new level's atlas. Out: per page
+//! a [`PageCarry`] (the adaptive allocation's [`Scale`], each channel's
+//! [`Ranges`], the solve's [`SolveRange`], the receivers inside geometry)
+//! when the new atlas is PREV's, else why not; and for every output the
+//! fingerprint's `atlas` hash and per-page fields ([`atlas_hash`],
+//! [`pages_json`]).
 //!
 //! Why these: a texel's rays see only geometry within `maxDistance`, but
-//! four things in a bake are the level's or a page's as a whole: the bake
+//! some things in a bake are the level's or a page's as a whole: the bake
 //! space (the scene's bounding box: every vertex is mapped by it), the
-//! charts' places
-//! (the packer packs every mesh), the allocation's scale (one bisection
-//! per page turns every receiver's predicted variance into its ray
-//! count) and the encoding's range (each coefficient's minimum and
-//! maximum over the page). Taken from PREV, an edit changes none of them,
-//! so it reaches only the texels near it (`docs/incremental.md`).
+//! charts' places (the packer packs every mesh), the allocation's scale
+//! (one bisection per page turns every receiver's predicted variance into
+//! its ray count), the encoding's range (each coefficient's minimum and
+//! maximum over the page) and the solve's range (the same before the
+//! solve). Taken from PREV (the solve's widened by the page's own), an
+//! edit changes none of them, so it reaches only the texels near it. The
+//! inside marks are not page-wide, but the dilate's fill reads them far
+//! from a texel; carried, a bake of only the texels an edit reaches fills
+//! them as the whole page's bake does (`docs/incremental.md`).
 
 use crate::atlas::{Atlas, Receivers};
 use crate::bake::adaptive::Scale;
@@ -40,6 +45,8 @@ pub struct PageCarry {
     pub ranges: Option<Ranges>,
     /// The lightmap stage's solve's range ([`SolveRange`]).
     pub solve_range: Option<SolveRange>,
+    /// The receivers inside geometry, as runs of texels ([`inside_runs`]).
+    pub inside: Option<Vec<u32>>,
     /// PREV's images of the page as written, for a page no edit reaches
     /// (`None` when they do not read).
     pub images: Option<Encoded>,
@@ -84,6 +91,16 @@ pub fn space_json(space: &BakeSpace) -> Value {
     json!(space.to_array())
 }
 
+/// The fingerprint's fields a later bake carries per page: `scales`,
+/// `solveRanges` and `inside`, as one JSON object.
+pub fn pages_json(pages: &[&Encoded]) -> Value {
+    json!({
+        "scales": scales_json(pages),
+        "solveRanges": solve_ranges_json(pages),
+        "inside": inside_json(pages),
+    })
+}
+
 /// The fingerprint's `scales`: per page `[log2 scale, margin]` of the
 /// adaptive allocation, or null.
 pub fn scales_json(pages: &[&Encoded]) -> Value {
@@ -105,6 +122,52 @@ pub fn solve_ranges_json(pages: &[&Encoded]) -> Value {
             _ => Value::Null,
         })
         .collect()
+}
+
+/// The fingerprint's `inside`: per page the runs of texels whose receiver
+/// lies inside geometry ([`inside_runs`]), or null.
+pub fn inside_json(pages: &[&Encoded]) -> Value {
+    (pages.iter())
+        .map(|e| e.inside.as_ref().map_or(Value::Null, |runs| json!(runs)))
+        .collect()
+}
+
+/// The texels of the receivers marked `inside` (per receiver, keyed by
+/// `texels`) as runs `[gap, count, ...]` in texel order, each gap the
+/// texels skipped since the previous run's end (since texel 0 for the
+/// first): small numbers, for a short JSON. The dilate's fill reads these
+/// marks over the whole page; a bake of only the texels an edit reaches
+/// takes the others from PREV.
+pub fn inside_runs(texels: &[u32], inside: &[bool]) -> Vec<u32> {
+    let mut marked: Vec<u32> = (texels.iter().zip(inside))
+        .filter(|&(_, &i)| i)
+        .map(|(&t, _)| t)
+        .collect();
+    marked.sort_unstable();
+    let (mut runs, mut end): (Vec<u32>, u32) = (Vec::new(), 0);
+    for t in marked {
+        match runs.last_mut() {
+            Some(count) if t == end => *count += 1,
+            _ => runs.extend([t - end, 1]),
+        }
+        end = t + 1;
+    }
+    runs
+}
+
+/// Per texel of a `texels`-texel page, whether [`inside_runs`]' `runs`
+/// mark it; `None` when they do not read (odd length, past the page).
+pub fn inside_texels(runs: &[u32], texels: usize) -> Option<Vec<bool>> {
+    if !runs.len().is_multiple_of(2) {
+        return None;
+    }
+    let (mut marked, mut end) = (vec![false; texels], 0usize);
+    for run in runs.chunks_exact(2) {
+        let first = end.checked_add(run[0] as usize)?;
+        end = first.checked_add(run[1] as usize)?;
+        marked.get_mut(first..end)?.fill(true);
+    }
+    Some(marked)
 }
 
 /// PREV's record, from its JSON and BIN chunk; `None` when its
@@ -145,6 +208,13 @@ pub fn read(json: &Value, bin: &[u8]) -> Option<PrevRecord> {
             (Some(lo), Some(hi)) if lo.len() == hi.len() => Some(SolveRange { lo, hi }),
             _ => None,
         };
+    }
+    let inside = f.get("inside").and_then(Value::as_array);
+    for (page, runs) in pages.iter_mut().zip(inside.into_iter().flatten()) {
+        page.inside = (runs.as_array().into_iter().flatten())
+            .map(|v| v.as_u64().and_then(|v| u32::try_from(v).ok()))
+            .collect::<Option<Vec<u32>>>()
+            .filter(|r| runs.is_array() && r.len().is_multiple_of(2));
     }
     // Every baked primitive holds its page's ranges; the first read of a
     // page gives them, a later one with the layer adds the layer's.
@@ -227,6 +297,7 @@ fn page_images(json: &Value, bin: &[u8], p: usize, page: &PageCarry) -> Option<E
         visibility,
         scale: page.scale,
         solve_range: page.solve_range.clone(),
+        inside: page.inside.clone(),
     })
 }
 
@@ -357,6 +428,7 @@ mod tests {
                 "atlas": "00000000000000aa",
                 "scales": [[s.log_scale, s.margin], null],
                 "solveRanges": [[lo, hi], null],
+                "inside": [[3, 2, 9, 1], null],
             }}},
             "meshes": [{"primitives": [
                 {"extensions": {"AOBAKE_lightmap": {"page": 1, "shScale": sh, "shOffset": sh}}},
@@ -376,6 +448,8 @@ mod tests {
         let range = r.pages[0].solve_range.as_ref().unwrap();
         assert_eq!((&range.lo, &range.hi), (&lo, &hi));
         assert_eq!(r.pages[1].solve_range, None);
+        assert_eq!(r.pages[0].inside, Some(vec![3, 2, 9, 1]));
+        assert_eq!(r.pages[1].inside, None);
         let ranges = r.pages[0].ranges.as_ref().unwrap();
         assert_eq!(ranges.sh_scale.to_vec(), sh);
         assert_eq!(ranges.visibility, Some((vec![0.5, 0.25], vec![-0.5, 0.0])));
@@ -387,5 +461,21 @@ mod tests {
             .unwrap()
             .remove("atlas");
         assert_eq!(read(&old, &[]), None);
+    }
+
+    #[test]
+    fn inside_runs_read_back_as_the_marked_texels() {
+        // Receivers in any order; runs join neighbouring texels.
+        let texels = [7u32, 2, 3, 4, 9, 0, 8];
+        let inside = [true, true, true, false, true, true, true];
+        let runs = inside_runs(&texels, &inside);
+        assert_eq!(runs, vec![0, 1, 1, 2, 3, 3]);
+        let marked = inside_texels(&runs, 10).unwrap();
+        let want: Vec<bool> = (0..10).map(|t| [0, 2, 3, 7, 8, 9].contains(&t)).collect();
+        assert_eq!(marked, want);
+        // Past the page or half a run: not read.
+        assert_eq!(inside_texels(&runs, 9), None);
+        assert_eq!(inside_texels(&[1], 9), None);
+        assert_eq!(inside_texels(&[], 4), Some(vec![false; 4]));
     }
 }

@@ -330,6 +330,10 @@ impl Page<'_> {
             encode::encode_in(&lightmap, s.visibility_order, self.carry.ranges.as_ref())?;
         encoded.scale = passes.adaptive_stats.as_ref().and_then(|a| a.scale);
         encoded.solve_range = built.solve_range;
+        encoded.inside = Some(super::carry::inside_runs(
+            &self.receivers.texel,
+            passes.inside(self),
+        ));
         if let Some(dir) = &run.exr_dir {
             let dir = page_dir(dir, self.page);
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;

@@ -55,10 +55,9 @@ pub struct Fingerprint {
     pub space: Value,
     /// [`carry::atlas_hash`] of the atlas, hex.
     pub atlas: String,
-    /// Per page the adaptive allocation's scale ([`carry::scales_json`]).
-    pub scales: Value,
-    /// Per page the solve's range ([`carry::solve_ranges_json`]).
-    pub solve_ranges: Value,
+    /// Per page what a later bake carries ([`carry::pages_json`]: `scales`,
+    /// `solveRanges`, `inside`), a JSON object.
+    pub pages: Value,
 }
 
 /// A node's part of the scene as the bake reads it: the shape of what it
@@ -148,24 +147,26 @@ impl Fingerprint {
             nodes: node_prints(scene),
             space: carry::space_json(space),
             atlas: hex(carry::atlas_hash(atlas)),
-            scales: carry::scales_json(pages),
-            solve_ranges: carry::solve_ranges_json(pages),
+            pages: carry::pages_json(pages),
         }
     }
 
     /// Its JSON, `integrity` last and unsealed (see [`seal`]).
     pub fn to_json(&self) -> Value {
-        json!({
+        let mut f = json!({
             "aobake": self.aobake,
             "input": self.input,
             "settings": self.settings,
             "nodes": self.nodes.iter().map(|n| json!([n.node, n.shape, n.transform, n.bounds])).collect::<Vec<_>>(),
             "space": self.space,
             "atlas": self.atlas,
-            "scales": self.scales,
-            "solveRanges": self.solve_ranges,
-            "integrity": UNSEALED,
-        })
+        });
+        let map = f.as_object_mut().expect("an object");
+        if let Some(pages) = self.pages.as_object() {
+            map.extend(pages.clone());
+        }
+        map.insert("integrity".into(), json!(UNSEALED));
+        f
     }
 }
 
@@ -322,8 +323,7 @@ fn check_file(prev: &[u8], want: &Wanted) -> Result<Value, Why> {
         nodes: read_nodes(f).ok_or("PREV's fingerprint has no readable nodes")?,
         space: Value::Null,
         atlas: String::new(),
-        scales: Value::Null,
-        solve_ranges: Value::Null,
+        pages: Value::Null,
     };
     // The integrity first: an edited file's other fields prove nothing.
     let at = (integrity_at(prev, f))

@@ -82,6 +82,9 @@ pub struct PageImages {
     /// The solve's range: each channel's lowest and highest value's bits.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solve_range: Option<(Vec<u32>, Vec<u32>)>,
+    /// The receivers inside geometry, as runs of texels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inside: Option<Vec<u32>>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -129,6 +132,7 @@ pub fn write<'a>(mut header: PartialHeader, pages: &[(u32, &'a Encoded)]) -> Vec
             }),
             scale: e.scale.map(|s| (s.log_scale.to_bits(), s.margin.to_bits())),
             solve_range: (e.solve_range.as_ref()).map(|r| (bits(&r.lo), bits(&r.hi))),
+            inside: e.inside.clone(),
         })
         .collect();
     let sizes: Vec<usize> = owned.iter().map(|b| b.len()).collect();
@@ -222,6 +226,7 @@ pub fn read(bytes: &[u8]) -> Result<Partial, String> {
                 lo: floats(lo),
                 hi: floats(hi),
             }),
+            inside: p.inside.clone(),
         };
         pages.push((p.page, encoded));
     }
