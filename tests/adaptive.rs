@@ -365,3 +365,73 @@ fn a_part_of_a_page_bakes_to_the_whole_pages_values_a_halo_inside_it() {
     let (_, differ) = differing(0);
     assert!(differ > 0, "without the halo every receiver matched");
 }
+
+#[test]
+fn the_lightmap_stage_of_a_part_gives_the_whole_pages_texels_or_nan() {
+    // The Cornell box at 128 with the visibility layer, the border fit
+    // and the seams' stitch: the lightmap stage of a window's part gives
+    // each texel the whole page's value bit for bit, or NaN (not known).
+    // (A page of small charts, such as the flight helmet's at 128, is one
+    // solve component through its gutters: little of a part is known.)
+    let sc = bundled_scene("cornell_box.glb");
+    let mut s = adaptive(128, 64, None);
+    s.visibility = aobake::job::settings::VisibilityMode::All;
+    let (quiet, mut timer) = (&aobake::RunOptions::QUIET, aobake::stage::StageTimer::new());
+    let level = aobake::job::Level::new(&sc, &s, quiet, &mut timer).expect("level");
+    let mut page = level.page(0, &sc, &mut timer).expect("page");
+    let whole = page.bake(&s, quiet, &mut timer).expect("whole");
+    let out = page.finish(&whole, &s, quiet, &mut timer).expect("finish");
+    let full = out.lightmap;
+    // What a rebake carries: the allocation's scale and the solve's range.
+    page.carry.scale = whole.adaptive_stats.as_ref().expect("adaptive").scale;
+    page.carry.solve_range = out.encoded.solve_range.clone();
+    let inside = whole.inside(&page).to_vec();
+    let r = &page.receivers;
+    let w = r.width as i64;
+    let (x0, x1, y0, y1) = (30i64, 90, 20, 80);
+    let grow = aobake::bake::adaptive::PageWide::halo(&s.adaptive) as i64 + 6;
+    let part: Vec<u32> = (0..r.len() as u32)
+        .filter(|&i| {
+            let t = r.texel[i as usize] as i64;
+            let (x, y) = (t % w, t / w);
+            x >= x0 - grow && x < x1 + grow && y >= y0 - grow && y < y1 + grow
+        })
+        .collect();
+    let (_, passes) = page.bake_part(&part, &s, quiet, &mut timer).expect("part");
+    let lm = page
+        .lightmap_part(&part, &passes, &inside, &s, &mut timer)
+        .expect("lightmap of the part");
+    let (full_v, part_v) = (full.visibility.as_ref(), lm.visibility.as_ref());
+    let (mut known, mut differ, mut covered_in_window, mut page_known) = (0, 0, 0, 0);
+    for t in 0..lm.ao.len() {
+        let (x, y) = (t as i64 % w, t as i64 / w);
+        let in_window = x >= x0 && x < x1 && y >= y0 && y < y1;
+        covered_in_window += (in_window && full.covered[t]) as usize;
+        let v = part_v.expect("layer")[t];
+        let finite = lm.ao[t].is_finite()
+            && lm.sh[t].iter().all(|c| c.is_finite())
+            && v.iter().all(|c| c.is_finite());
+        if !finite {
+            continue;
+        }
+        known += (in_window && full.covered[t]) as usize;
+        page_known += full.covered[t] as usize;
+        let same = lm.ao[t].to_bits() == full.ao[t].to_bits()
+            && lm.sh[t].map(f32::to_bits) == full.sh[t].map(f32::to_bits)
+            && v.map(f32::to_bits) == full_v.expect("layer")[t].map(f32::to_bits);
+        differ += !same as usize;
+    }
+    assert_eq!(
+        differ, 0,
+        "{differ} known texels differ from the whole page's"
+    );
+    // Most of the window is known (what is not: texels whose seams or
+    // solve components reach out of the part), and the page outside the
+    // part is not.
+    assert!(
+        known * 10 >= covered_in_window * 9,
+        "{known} of the window's {covered_in_window} covered texels known"
+    );
+    let covered = full.covered.iter().filter(|&&c| c).count();
+    assert!(page_known * 2 < covered, "{page_known} of {covered} known");
+}

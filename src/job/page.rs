@@ -24,6 +24,7 @@ use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
 use crate::lightmap::{self, Lightmap, PageBake};
 use crate::stage::{StageTime, StageTimer, progress_bar};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// One page of a level, prepared: every stage before the first ray. It
@@ -287,25 +288,11 @@ impl Page<'_> {
                 encode::write_grey_maps(dir, &self.receivers, &maps)?;
             }
         }
+        let sigma = passes.adaptive_stats.as_ref().map(|a| &a.sigma_texels[..]);
+        let mut page_bake = self.page_bake(&passes.bake, passes.inside(self), sigma, s);
+        page_bake.fit_cache = Some(&self.fit_cache);
         let built = lightmap::build(
-            &PageBake {
-                page: self.page,
-                pages: &level.atlas.pages,
-                meshes: &level.geometry.receivers,
-                atlas: &self.atlas,
-                receivers: &self.receivers,
-                bake: &passes.bake,
-                inside: passes.inside(self),
-                cross_seams: &level.cross_seams,
-                tracer: &level.tracer,
-                max_distance: level.max_distance,
-                seed: s.seed,
-                diagonal: level.geometry.space.diagonal,
-                fit_cache: Some(&self.fit_cache),
-                solve_range: self.carry.solve_range.as_ref(),
-                noise_rays: s.noise_rays(),
-                sigma_texels: passes.adaptive_stats.as_ref().map(|a| &a.sigma_texels[..]),
-            },
+            &page_bake,
             s.seams,
             s.border,
             s.filter,
@@ -351,6 +338,88 @@ impl Page<'_> {
             border: built.border,
             engine_view,
         })
+    }
+
+    /// What the lightmap stage reads of the page baked as `bake`.
+    fn page_bake<'b>(
+        &'b self,
+        bake: &'b crate::bake::Bake,
+        inside: &'b [bool],
+        sigma_texels: Option<&'b [f32]>,
+        s: &BakeSettings,
+    ) -> PageBake<'b> {
+        let level = self.level;
+        PageBake {
+            page: self.page,
+            pages: &level.atlas.pages,
+            meshes: &level.geometry.receivers,
+            atlas: &self.atlas,
+            receivers: &self.receivers,
+            bake,
+            inside,
+            cross_seams: &level.cross_seams,
+            tracer: &level.tracer,
+            max_distance: level.max_distance,
+            seed: s.seed,
+            diagonal: level.geometry.space.diagonal,
+            fit_cache: None,
+            solve_range: self.carry.solve_range.as_ref(),
+            known: None,
+            noise_rays: s.noise_rays(),
+            sigma_texels,
+        }
+    }
+
+    /// The lightmap stage of a bake of part of the page (`part` and its
+    /// `passes`, [`Page::bake_part`]), with `inside` the page's marks per
+    /// receiver (PREV's, and the part's own over them): the page's float
+    /// lightmap, each texel the value [`Page::finish`] gives it on a bake
+    /// of the whole page, or NaN where that depends on a receiver less
+    /// than [`adaptive::PageWide::halo`] texels inside the part
+    /// ([`lightmap::build`] says how NaN travels). Bilinear pages only.
+    pub fn lightmap_part(
+        &self,
+        part: &[u32],
+        passes: &BakePasses,
+        inside: &[bool],
+        s: &BakeSettings,
+        timer: &mut StageTimer,
+    ) -> Result<Lightmap> {
+        if s.filter != Filter::Bilinear {
+            return Err(Error::option_conflict(
+                "filter",
+                "a bake of part of a page is bilinear only",
+            ));
+        }
+        let r = &self.receivers;
+        let known = deep_in_part(r, part, adaptive::PageWide::halo(&s.adaptive));
+        let n = r.len();
+        let b = &passes.bake;
+        let mut bake = crate::bake::Bake {
+            ao: vec![0.0; n],
+            sh: vec![[0.0; crate::sh::SH_COUNT]; n],
+            rays: b.rays,
+            visibility: (b.visibility.as_ref()).map(|v| crate::bake::visibility::Visibility {
+                v: vec![[0.0; crate::sh::VIS_COUNT]; n],
+                rays: v.rays,
+            }),
+        };
+        let mut sigma = vec![0.0f32; n];
+        let part_sigma = passes.adaptive_stats.as_ref().map(|a| &a.sigma_texels);
+        for (k, &j) in part.iter().enumerate() {
+            let j = j as usize;
+            bake.ao[j] = b.ao[k];
+            bake.sh[j] = b.sh[k];
+            if let (Some(to), Some(from)) = (&mut bake.visibility, &b.visibility) {
+                to.v[j] = from.v[k];
+            }
+            sigma[j] = part_sigma.map_or(0.0, |p| p[k]);
+        }
+        let sigma = part_sigma.map(|_| &sigma[..]);
+        let mut page_bake = self.page_bake(&bake, inside, sigma, s);
+        page_bake.known = Some(&known);
+        let built = lightmap::build(&page_bake, s.seams, s.border, s.filter, false, timer)?;
+        Ok(built.lightmap)
     }
 
     /// The engine-view error of the page's encoded images, with this
@@ -436,4 +505,41 @@ pub struct EngineProbe {
     pub points: engine_view::SurfacePoints,
     pub reference: engine_view::PointReference,
     pub centers: Vec<bool>,
+}
+
+/// Per receiver of `r`: whether it is in `part` (indices into `r`) with
+/// no receiver outside it within `halo` texels (Chebyshev).
+fn deep_in_part(r: &Receivers, part: &[u32], halo: u32) -> Vec<bool> {
+    let (w, h) = (r.width as usize, r.height as usize);
+    let mut inside_part = vec![false; r.len()];
+    for &j in part {
+        inside_part[j as usize] = true;
+    }
+    // Texels of receivers outside the part, grown by `halo` (rows, then
+    // columns).
+    let mut outside = vec![false; w * h];
+    for (j, &t) in r.texel.iter().enumerate() {
+        outside[t as usize] |= !inside_part[j];
+    }
+    let halo = halo as usize;
+    let grow = |src: &[bool], along_rows: bool| -> Vec<bool> {
+        (0..w * h)
+            .into_par_iter()
+            .map(|t| {
+                let (x, y) = (t % w, t / w);
+                match along_rows {
+                    true => {
+                        (x.saturating_sub(halo)..=(x + halo).min(w - 1)).any(|x| src[y * w + x])
+                    }
+                    false => {
+                        (y.saturating_sub(halo)..=(y + halo).min(h - 1)).any(|y| src[y * w + x])
+                    }
+                }
+            })
+            .collect()
+    };
+    let near = grow(&grow(&outside, true), false);
+    (r.texel.iter().zip(&inside_part))
+        .map(|(&t, &p)| p && !near[t as usize])
+        .collect()
 }

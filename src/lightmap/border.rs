@@ -179,7 +179,9 @@ pub fn step_texels(ao: &[f32], covered: &[bool], width: u32, height: u32, span: 
                     .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &t| {
                         (lo.min(ao[t]), hi.max(ao[t]))
                     });
-                if hi - lo > span {
+                // A tap not known (NaN, a bake of part of a page) may
+                // hide a step: the cell counts as one.
+                if hi - lo > span || taps.iter().any(|&t| ao[t].is_nan()) {
                     cells.push(y * w + x);
                 }
             }
@@ -357,8 +359,12 @@ pub const SEAM_SCALE: f64 = 2.0;
 /// [`FIT_RAYS`] rays (AO, SH), and with `layer` [`FIT_VISIBILITY_RAYS`]
 /// for the visibility layer's coefficients after them, inside-geometry
 /// points left out. `seed`: the page's own (its points and rays depend on
-/// nothing else). Returns the anchors and the rays cast, the layer's
-/// included (the inside test's not counted).
+/// nothing else). `known`: per texel, whether its value is known (a bake
+/// of part of a page, [`super::build`]); a point whose cell has a tap not
+/// known is not traced and becomes a row whose target is NaN in every
+/// channel, so that the solve leaves whatever it ties not known. Returns
+/// the anchors and the rays cast, the layer's included (the inside test's
+/// not counted).
 #[allow(clippy::too_many_arguments)]
 pub fn anchors(
     tris: &[SurfaceTri],
@@ -366,6 +372,7 @@ pub fn anchors(
     height: u32,
     free: &[bool],
     center_inside: &[bool],
+    known: Option<&[bool]>,
     tracer: &Tracer,
     max_distance: f32,
     seed: u64,
@@ -375,6 +382,20 @@ pub fn anchors(
     if points.is_empty() {
         return (Vec::new(), 0);
     }
+    // Points in cells not known: rows with NaN targets, in their places.
+    let traced =
+        |p: &FitPoint| known.is_none_or(|k| cell_taps(p.uv, width, height).iter().all(|&t| k[t]));
+    let unknown: Vec<bool> = points.iter().map(|p| !traced(p)).collect();
+    let (all, points): (Vec<FitPoint>, Vec<FitPoint>) = match known {
+        None => (Vec::new(), points),
+        Some(_) => {
+            let kept = (points.iter().zip(&unknown))
+                .filter(|&(_, &u)| !u)
+                .map(|(p, _)| *p)
+                .collect();
+            (points, kept)
+        }
+    };
     let mut r = Receivers {
         width,
         height,
@@ -393,7 +414,7 @@ pub fn anchors(
     let uv = |p: &FitPoint| [p.uv.x / w, p.uv.y / h];
     let bake = mc::bake(&r, tracer, FIT_RAYS, &params, &|_| {});
     let v = layer.then(|| visibility::bake(&r, tracer, FIT_VISIBILITY_RAYS, &params));
-    let anchors = points
+    let anchors: Vec<Anchor> = points
         .iter()
         .enumerate()
         .filter(|&(k, _)| !inside[k])
@@ -411,7 +432,33 @@ pub fn anchors(
             }
         })
         .collect();
-    (anchors, bake.rays + v.map_or(0, |v| v.rays))
+    let rays = bake.rays + v.map_or(0, |v| v.rays);
+    if all.is_empty() {
+        return (anchors, rays);
+    }
+    // The untraced points' NaN rows back in the list's order.
+    let channels = 1 + SH_COUNT + if layer { VIS_COUNT } else { 0 };
+    let mut traced = (0..points.len()).filter(|&k| !inside[k]).zip(anchors);
+    let mut next = traced.next();
+    let mut out = Vec::with_capacity(all.len());
+    let mut k = 0;
+    for (p, &u) in all.iter().zip(&unknown) {
+        if u {
+            out.push(Anchor {
+                uv: uv(p),
+                target: vec![f32::NAN; channels],
+                weight: FIT_WEIGHT,
+            });
+            continue;
+        }
+        if let Some((j, a)) = next.take_if(|(j, _)| *j == k) {
+            debug_assert_eq!(j, k);
+            out.push(a);
+            next = traced.next();
+        }
+        k += 1;
+    }
+    (out, rays)
 }
 
 #[cfg(test)]
@@ -473,7 +520,7 @@ mod tests {
         let tracer = Tracer::with_sides(&[roof], &[false]);
         let all = vec![true; 100];
         let fit = |tris: &[SurfaceTri]| {
-            let (anchors, _) = anchors(tris, 10, 10, &all, &all, &tracer, 3.0, 5, false);
+            let (anchors, _) = anchors(tris, 10, 10, &all, &all, None, &tracer, 3.0, 5, false);
             anchors
         };
         let alone = fit(&a);

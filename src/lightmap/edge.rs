@@ -142,8 +142,16 @@ pub fn rows(
             let uv = uv?;
             let mut target = vec![0.0f32; channels];
             value(t, &mut target);
-            if !smooth(receiver_of[t] as usize) && !agrees(target[0], &near.ao_near(points, uv)) {
-                return None;
+            if !smooth(receiver_of[t] as usize) {
+                let near = near.ao_near(points, uv);
+                if target[0].is_nan() || near.iter().any(|a| a.is_nan()) {
+                    // Not known (a bake of part of a page): whether it
+                    // agrees is not known either; the row's NaN target
+                    // leaves what it ties not known.
+                    target.fill(f32::NAN);
+                } else if !agrees(target[0], &near) {
+                    return None;
+                }
             }
             let row = Anchor {
                 uv: [uv.x / w as f32, uv.y / h as f32],

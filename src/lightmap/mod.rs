@@ -127,6 +127,10 @@ pub struct PageBake<'a> {
     /// The solve's range in an earlier bake of the page (`--reuse`), which
     /// the page's own widens ([`seams::stitch_page`]).
     pub solve_range: Option<&'a SolveRange>,
+    /// Per receiver, whether `bake` holds its value: `None` when every
+    /// receiver's does; else a bake of part of the page (`--reuse`), and
+    /// the texels whose value the others decide come out NaN ([`build`]).
+    pub known: Option<&'a [bool]>,
     /// The Monte Carlo ray count whose noise the page's values carry
     /// ([`crate::job::settings::BakeSettings::noise_rays`]), which a step
     /// cell must stand out from ([`border::step_span`]); `None` for the
@@ -151,6 +155,19 @@ pub struct Built {
 /// Runs the post-bake stages on one page: dilate, spread, the border fit
 /// and the seams' stitch (one least-squares solve). Fails if a baked value
 /// is NaN or infinite (it must never reach a texture).
+///
+/// A bake of part of a page (`p.known`) gives every texel the value the
+/// whole page's bake gives it, or NaN where that value depends on a
+/// receiver not known. NaN marks "not known" through every stage: a
+/// texel showing a receiver not known is NaN; a bilinear cell with a NaN
+/// tap counts as a step, and the texels of such cells are made NaN after
+/// the structure is decided (their own structure read only known values);
+/// fit points in a cell with a NaN tap are not traced and become NaN rows
+/// in their places; an edge row that reads a NaN is a NaN row; a solve
+/// component reading a NaN is not solved (NaN); the active set's second
+/// solve makes NaN the texels whose membership a NaN decides. So every
+/// texel that comes out finite was computed from exactly the inputs, rows
+/// and components of the whole page's bake, in the same order.
 pub fn build(
     p: &PageBake,
     seam_mode: SeamMode,
@@ -162,7 +179,7 @@ pub fn build(
     timer.restart();
     let r = p.receivers;
     let fill = dilate::fill_map(r.width, r.height, &r.texel, p.inside);
-    let mut lightmap = spread(r, p.bake, &fill)?;
+    let mut lightmap = spread(r, p.bake, &fill, p.known)?;
     timer.lap("dilate");
     let (w, h) = (lightmap.width, lightmap.height);
     let bicubic = filter == Filter::Bicubic;
@@ -217,21 +234,27 @@ pub fn build(
         Filter::Bilinear => fit_at.clone(),
         Filter::Bicubic => seams::reach(&lightmap.covered, w, h, filter.reach()),
     };
+    let fitted = (border_mode != BorderMode::Off).then(|| {
+        let span = border::flat_span(p.noise_rays);
+        border::fitted_taps(&lightmap.ao, &lightmap.covered, &fit_at, w, h, span)
+    });
+    // Part of a page: the structure is decided; texels next to one not
+    // known are not known (their cells' structure read a NaN).
+    let known = p.known.map(|_| unknown_cells_to_nan(&mut lightmap));
+    let known = known.as_deref();
     // The border fit's points, traced (once per page, free texels and
     // fitted taps).
-    let fit: Option<std::sync::Arc<border::FitTargets>> = match border_mode {
-        BorderMode::Off => None,
-        BorderMode::Fit | BorderMode::Band => {
+    let fit: Option<std::sync::Arc<border::FitTargets>> = match (border_mode, fitted) {
+        (BorderMode::Off, _) | (_, None) => None,
+        (BorderMode::Fit | BorderMode::Band, Some(fitted)) => {
             let layer = lightmap.visibility.is_some();
-            let span = border::flat_span(p.noise_rays);
-            let fitted = border::fitted_taps(&lightmap.ao, &lightmap.covered, &fit_at, w, h, span);
             let trace = |free: Vec<bool>, fitted: Vec<bool>| {
                 let tris = surface_triangles(p.meshes, p.atlas);
                 let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
                 let (tracer, d) = (p.tracer, p.max_distance);
                 let inside = r.centers_inside();
                 let (anchors, rays) =
-                    border::anchors(&tris, w, h, &fitted, &inside, tracer, d, seed, layer);
+                    border::anchors(&tris, w, h, &fitted, &inside, known, tracer, d, seed, layer);
                 std::sync::Arc::new(border::FitTargets {
                     layer,
                     free,
@@ -240,7 +263,7 @@ pub fn build(
                     rays,
                 })
             };
-            let fit = match p.fit_cache {
+            let fit = match p.fit_cache.filter(|_| known.is_none()) {
                 None => trace(fit_at.clone(), fitted),
                 Some(cache) => {
                     let mut kept = cache.lock().unwrap_or_else(|e| e.into_inner());
@@ -328,6 +351,31 @@ pub fn build(
         seam_maps,
         solve_range,
     })
+}
+
+/// Makes NaN (every channel) each texel that shares a bilinear cell with
+/// one whose AO is NaN; returns per texel whether its value is known
+/// (finite) after.
+fn unknown_cells_to_nan(lm: &mut Lightmap) -> Vec<bool> {
+    let (w, h) = (lm.width as usize, lm.height as usize);
+    let nan: Vec<bool> = lm.ao.iter().map(|a| a.is_nan()).collect();
+    let known: Vec<bool> = (0..w * h)
+        .into_par_iter()
+        .map(|t| {
+            let (x, y) = (t % w, t / w);
+            let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
+            let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
+            !(y0..=y1).any(|y| (x0..=x1).any(|x| nan[y * w + x]))
+        })
+        .collect();
+    for (t, _) in known.iter().enumerate().filter(|&(_, &k)| !k) {
+        lm.ao[t] = f32::NAN;
+        lm.sh[t] = [f32::NAN; SH_COUNT];
+        if let Some(v) = &mut lm.visibility {
+            v[t] = [f32::NAN; VIS_COUNT];
+        }
+    }
+    known
 }
 
 /// A bicubic page's centre rows: at every covered texel not fitted to

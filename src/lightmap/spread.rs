@@ -15,10 +15,19 @@ use rayon::prelude::*;
 
 /// Spreads receiver results over the image through the dilation map.
 /// Fails if any value is NaN or infinite (it must never reach a texture).
-pub fn spread(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Lightmap> {
+/// `known`: per receiver, whether its result was baked (a bake of part of
+/// a page): a texel that shows a receiver not known is NaN in every
+/// channel, which the later stages carry as "not known" ([`super::build`]).
+pub fn spread(
+    receivers: &Receivers,
+    bake: &Bake,
+    fill: &[u32],
+    known: Option<&[bool]>,
+) -> Result<Lightmap> {
     let layer = bake.visibility.as_ref().map(|l| &l.v);
+    let known = |r: usize| known.is_none_or(|k| k[r]);
     if let Some(r) = (0..receivers.len()).find(|&r| {
-        !bake.ao[r].is_finite()
+        known(r) && !bake.ao[r].is_finite()
             || !bake.sh[r].iter().all(|c| c.is_finite())
             || layer.is_some_and(|v| !v[r].iter().all(|c| c.is_finite()))
     }) {
@@ -34,23 +43,34 @@ pub fn spread(receivers: &Receivers, bake: &Bake, fill: &[u32]) -> Result<Lightm
         covered[t as usize] = true;
     }
     let pick = |t: &u32| (*t != NONE).then_some(*t as usize);
+    let nan = f32::NAN;
     Ok(Lightmap {
         width: receivers.width,
         height: receivers.height,
         ao: fill
             .par_iter()
-            .map(|t| pick(t).map_or(1.0, |r| bake.ao[r]))
+            .map(|t| pick(t).map_or(1.0, |r| if known(r) { bake.ao[r] } else { nan }))
             .collect(),
         sh: fill
             .par_iter()
-            .map(|t| pick(t).map_or([0.0; SH_COUNT], |r| bake.sh[r]))
+            .map(|t| {
+                pick(t).map_or([0.0; SH_COUNT], |r| match known(r) {
+                    true => bake.sh[r],
+                    false => [nan; SH_COUNT],
+                })
+            })
             .collect(),
         covered,
         // A gutter texel far from any receiver: the open hemisphere of +z
         // would be as arbitrary; zero, as for the SH.
         visibility: layer.map(|v| {
             fill.par_iter()
-                .map(|t| pick(t).map_or([0.0; VIS_COUNT], |r| v[r]))
+                .map(|t| {
+                    pick(t).map_or([0.0; VIS_COUNT], |r| match known(r) {
+                        true => v[r],
+                        false => [nan; VIS_COUNT],
+                    })
+                })
                 .collect()
         }),
     })

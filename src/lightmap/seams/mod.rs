@@ -256,6 +256,15 @@ pub fn stitch_page(
             .collect();
         (!over.is_empty()).then(|| around(&over, free, width, height))
     });
+    // Solved texels not known (NaN, a bake of part of a page) count as
+    // outside the range: whether the texels within two of them are solved
+    // again is not known, so their saved values are NaN (every component
+    // of the second solve holding one is not known).
+    let unknown: Vec<u32> = (texels.iter().enumerate())
+        .filter(|&(k, _)| values[k * channels].is_nan())
+        .map(|(_, &t)| t)
+        .collect();
+    let undecided = (!unknown.is_empty()).then(|| around(&unknown, free, width, height));
     // The baked values of the texels solved again, by texel.
     let saved = again.as_ref().map(|again| {
         let mut slot = vec![u32::MAX; free.len()];
@@ -270,6 +279,11 @@ pub fn stitch_page(
                 t as usize,
                 &mut saved[k * channels..(k + 1) * channels],
             );
+        }
+        for &t in undecided.iter().flatten() {
+            if let Some(k) = Some(slot[t as usize]).filter(|&k| k != u32::MAX) {
+                saved[k as usize * channels..][..channels].fill(f32::NAN);
+            }
         }
         (slot, saved)
     });

@@ -364,6 +364,11 @@ impl<F: Fn(u32) -> bool> System<F> {
                         }
                     }
                 }
+                // A component that reads a value not known (NaN: a bake
+                // of part of a page) is not known: not solved.
+                if !b.iter().chain(&x0).all(|v| v.is_finite()) {
+                    return (component, (texels, vec![f32::NAN; m * c], 0, true));
+                }
                 let (x, most, converged) = conjugate_gradients(&apply, &diagonal, &b, &x0, c);
                 let out: Vec<f32> = x.iter().map(|&v| v as f32).collect();
                 (component, (texels, out, most, converged))
