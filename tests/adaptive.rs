@@ -398,9 +398,10 @@ fn the_lightmap_stage_of_a_part_gives_the_whole_pages_texels_or_nan() {
         })
         .collect();
     let (_, passes) = page.bake_part(&part, &s, quiet, &mut timer).expect("part");
-    let lm = page
+    let built = page
         .lightmap_part(&part, &passes, &inside, &s, &mut timer)
         .expect("lightmap of the part");
+    let lm = &built.lightmap;
     let (full_v, part_v) = (full.visibility.as_ref(), lm.visibility.as_ref());
     let (mut known, mut differ, mut covered_in_window, mut page_known) = (0, 0, 0, 0);
     for t in 0..lm.ao.len() {
@@ -434,4 +435,15 @@ fn the_lightmap_stage_of_a_part_gives_the_whole_pages_texels_or_nan() {
     );
     let covered = full.covered.iter().filter(|&&c| c).count();
     assert!(page_known * 2 < covered, "{page_known} of {covered} known");
+    // An edit that changes a block of texels in the window's middle: every
+    // texel it can change is known. One at the part's edge: not.
+    let block = |cx: i64, cy: i64| -> Vec<bool> {
+        (0..lm.ao.len() as i64)
+            .map(|t| (t % w - cx).abs() <= 3 && (t / w - cy).abs() <= 3)
+            .collect()
+    };
+    let components = built.components.as_ref().expect("stitched");
+    let missing = |cx, cy| aobake::lightmap::known::missing(lm, components, &block(cx, cy));
+    assert_eq!(missing((x0 + x1) / 2, (y0 + y1) / 2), 0);
+    assert!(missing(x1 + grow - 2, (y0 + y1) / 2) > 0);
 }

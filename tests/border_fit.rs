@@ -182,7 +182,7 @@ fn solve_free(
         .iter()
         .map(|&a| std::array::from_fn(|i| if i == 0 { K0 as f32 * a } else { 0.0 }))
         .collect();
-    let (report, _) = stitch_page(
+    let report = stitch_page(
         seams,
         &[],
         &fitted,
@@ -197,7 +197,8 @@ fn solve_free(
         ao,
         &mut sh,
         None,
-    );
+    )
+    .report;
     assert!(report.solve.converged, "{:?}", report.solve);
     fitted.len()
 }

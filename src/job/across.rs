@@ -265,10 +265,10 @@ pub fn close(
         .map(|p| layer_count(encoded[p]))
         .max()
         .unwrap_or(0);
-    let (ids, solved, stats) = solve(0..1 + SH_COUNT, false);
-    let (layer_ids, layer_solved, layer_stats) = match layer {
+    let (ids, solved, stats, _) = solve(0..1 + SH_COUNT, false);
+    let (layer_ids, layer_solved, layer_stats, _) = match layer {
         true => solve(1 + SH_COUNT..1 + SH_COUNT + vis, true),
-        false => (Vec::new(), Vec::new(), StitchStats::default()),
+        false => (Vec::new(), Vec::new(), StitchStats::default(), Vec::new()),
     };
     report.solve = stats;
     report.solve.converged &= !layer || layer_stats.converged;

@@ -376,7 +376,9 @@ impl Page<'_> {
     /// lightmap, each texel the value [`Page::finish`] gives it on a bake
     /// of the whole page, or NaN where that depends on a receiver less
     /// than [`adaptive::PageWide::halo`] texels inside the part
-    /// ([`lightmap::build`] says how NaN travels). Bilinear pages only.
+    /// ([`lightmap::build`] says how NaN travels), and the solves'
+    /// components ([`lightmap::known::missing`] reads them). Bilinear
+    /// pages only.
     pub fn lightmap_part(
         &self,
         part: &[u32],
@@ -384,7 +386,7 @@ impl Page<'_> {
         inside: &[bool],
         s: &BakeSettings,
         timer: &mut StageTimer,
-    ) -> Result<Lightmap> {
+    ) -> Result<lightmap::Built> {
         if s.filter != Filter::Bilinear {
             return Err(Error::option_conflict(
                 "filter",
@@ -418,8 +420,7 @@ impl Page<'_> {
         let sigma = part_sigma.map(|_| &sigma[..]);
         let mut page_bake = self.page_bake(&bake, inside, sigma, s);
         page_bake.known = Some(&known);
-        let built = lightmap::build(&page_bake, s.seams, s.border, s.filter, false, timer)?;
-        Ok(built.lightmap)
+        lightmap::build(&page_bake, s.seams, s.border, s.filter, false, timer)
     }
 
     /// The engine-view error of the page's encoded images, with this

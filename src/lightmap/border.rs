@@ -436,29 +436,11 @@ pub fn anchors(
     if all.is_empty() {
         return (anchors, rays);
     }
-    // The untraced points' NaN rows back in the list's order.
     let channels = 1 + SH_COUNT + if layer { VIS_COUNT } else { 0 };
-    let mut traced = (0..points.len()).filter(|&k| !inside[k]).zip(anchors);
-    let mut next = traced.next();
-    let mut out = Vec::with_capacity(all.len());
-    let mut k = 0;
-    for (p, &u) in all.iter().zip(&unknown) {
-        if u {
-            out.push(Anchor {
-                uv: uv(p),
-                target: vec![f32::NAN; channels],
-                weight: FIT_WEIGHT,
-            });
-            continue;
-        }
-        if let Some((j, a)) = next.take_if(|(j, _)| *j == k) {
-            debug_assert_eq!(j, k);
-            out.push(a);
-            next = traced.next();
-        }
-        k += 1;
-    }
-    (out, rays)
+    let traced = (0..points.len()).filter(|&k| !inside[k]).zip(anchors);
+    let uvs = all.iter().map(uv);
+    let rows = super::known::with_nan_rows(uvs, &unknown, traced, channels, FIT_WEIGHT);
+    (rows, rays)
 }
 
 #[cfg(test)]

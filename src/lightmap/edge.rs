@@ -381,7 +381,7 @@ mod tests {
         // Both edge columns (2 and 9), every row of the page.
         assert_eq!(edge.rows.len(), 2 * h as usize);
         let solve = |rows: &[Anchor], weight: &(dyn Fn(u32) -> f64 + Sync)| {
-            let (texels, values, stats) = stitch(
+            let (texels, values, stats, _) = stitch(
                 &[],
                 &[],
                 rows,

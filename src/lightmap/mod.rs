@@ -22,7 +22,9 @@
 //!    one least-squares system with the border fit's points.
 //!
 //! A new post-bake stage goes into [`build`], between these, reading and
-//! writing the [`Lightmap`]. [`engine_view`] measures the result where an
+//! writing the [`Lightmap`]. A bake of part of a page carries NaN through
+//! them for "not known" ([`build`]); [`known`] tells whether the known
+//! texels hold all an edit can change. [`engine_view`] measures the result where an
 //! engine reads it (bilinear lookups at surface points).
 
 pub mod border;
@@ -30,6 +32,7 @@ pub mod dilate;
 pub mod edge;
 pub mod engine_view;
 pub(crate) mod filter;
+pub mod known;
 pub mod seams;
 pub(crate) mod spread;
 
@@ -150,6 +153,9 @@ pub struct Built {
     pub seam_maps: Option<[Vec<u8>; 2]>,
     /// The range the solve kept the page in (with the border fit).
     pub solve_range: Option<SolveRange>,
+    /// The solves' unknowns and their components
+    /// ([`seams::Stitched::components`]), when the page was stitched.
+    pub components: Option<[(Vec<u32>, Vec<u32>); 2]>,
 }
 
 /// Runs the post-bake stages on one page: dilate, spread, the border fit
@@ -190,6 +196,7 @@ pub fn build(
             border: None,
             seam_maps: None,
             solve_range: None,
+            components: None,
         });
     }
     let stitch = seam_mode == SeamMode::Stitch;
@@ -240,7 +247,7 @@ pub fn build(
     });
     // Part of a page: the structure is decided; texels next to one not
     // known are not known (their cells' structure read a NaN).
-    let known = p.known.map(|_| unknown_cells_to_nan(&mut lightmap));
+    let known = p.known.map(|_| known::unknown_cells_to_nan(&mut lightmap));
     let known = known.as_deref();
     // The border fit's points, traced (once per page, free texels and
     // fitted taps).
@@ -318,7 +325,7 @@ pub fn build(
         BorderMode::Fit | BorderMode::Band => border::SEAM_SCALE,
         BorderMode::Off => 1.0,
     };
-    let (report, solve_range) = seams::stitch_page(
+    let stitched = seams::stitch_page(
         &found,
         &anchors,
         &fitted,
@@ -334,6 +341,8 @@ pub fn build(
         &mut lightmap.sh,
         lightmap.visibility.as_deref_mut(),
     );
+    let (report, solve_range) = (stitched.report, stitched.range);
+    let components = Some(stitched.components);
     let border = (!points.is_empty() || !edge.rows.is_empty()).then(|| BorderReport {
         points: points.len(),
         rays: fit_rays,
@@ -350,32 +359,8 @@ pub fn build(
         border,
         seam_maps,
         solve_range,
+        components,
     })
-}
-
-/// Makes NaN (every channel) each texel that shares a bilinear cell with
-/// one whose AO is NaN; returns per texel whether its value is known
-/// (finite) after.
-fn unknown_cells_to_nan(lm: &mut Lightmap) -> Vec<bool> {
-    let (w, h) = (lm.width as usize, lm.height as usize);
-    let nan: Vec<bool> = lm.ao.iter().map(|a| a.is_nan()).collect();
-    let known: Vec<bool> = (0..w * h)
-        .into_par_iter()
-        .map(|t| {
-            let (x, y) = (t % w, t / w);
-            let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
-            let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
-            !(y0..=y1).any(|y| (x0..=x1).any(|x| nan[y * w + x]))
-        })
-        .collect();
-    for (t, _) in known.iter().enumerate().filter(|&(_, &k)| !k) {
-        lm.ao[t] = f32::NAN;
-        lm.sh[t] = [f32::NAN; SH_COUNT];
-        if let Some(v) = &mut lm.visibility {
-            v[t] = [f32::NAN; VIS_COUNT];
-        }
-    }
-    known
 }
 
 /// A bicubic page's centre rows: at every covered texel not fitted to
@@ -434,7 +419,7 @@ mod tests {
         assert_eq!(rows.len(), n);
         let free = vec![true; n];
         let (ao_out, sh_out) = (&mut lm.ao, &mut lm.sh);
-        let (report, _) = seams::stitch_page(
+        let report = seams::stitch_page(
             &[],
             &[],
             &rows,
@@ -449,7 +434,8 @@ mod tests {
             ao_out,
             sh_out,
             None,
-        );
+        )
+        .report;
         assert!(report.solve.converged, "{:?}", report.solve);
         // Away from the page's edge (clamp to edge bends the spline there).
         let (mut fitted, mut raw, mut linear) = (0.0f32, 0.0f32, 0.0f32);

@@ -165,8 +165,7 @@ pub(crate) fn write_channels(
 /// bake's [`SolveRange`] of the page (`--reuse`), widened by the page's
 /// own, so that a bake of only the texels an edit reaches (whose other
 /// texels hold values inside the carried range) keeps the range a bake of
-/// the whole page keeps. The report, and the range the solve kept (none
-/// without the border fit's points).
+/// the whole page keeps.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
@@ -183,7 +182,7 @@ pub fn stitch_page(
     ao: &mut [f32],
     sh: &mut [[f32; SH_COUNT]],
     visibility: Option<&mut [[f32; VIS_COUNT]]>,
-) -> (SeamReport, Option<SolveRange>) {
+) -> Stitched {
     let before = metric::measure(seams, width, height, ao, sh, filter);
     let gap_before = anchor_gap(anchors, width, height, ao, filter);
     let channels = channels(visibility.is_some());
@@ -203,7 +202,7 @@ pub fn stitch_page(
             baked,
         )
     };
-    let (texels, values, solve) = {
+    let (texels, values, solve, component) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
         stitch(&|t| !free[t as usize], &|t, out| {
             write_channels(ao, sh, v, t as usize, out)
@@ -290,8 +289,9 @@ pub fn stitch_page(
     let vis = visibility.as_deref_mut();
     write_solved(&texels, &values, range.as_ref(), ao, sh, vis);
     let mut solve = solve;
+    let mut components = [(texels, component), Default::default()];
     if let Some((slot, saved)) = saved {
-        let (texels, values, second) = {
+        let (texels, values, second, component) = {
             let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
             stitch(
                 &|t| slot[t as usize] == u32::MAX,
@@ -304,6 +304,7 @@ pub fn stitch_page(
         write_solved(&texels, &values, range.as_ref(), ao, sh, visibility);
         solve.max_iterations = solve.max_iterations.max(second.max_iterations);
         solve.converged &= second.converged;
+        components[1] = (texels, component);
     }
     let after = metric::measure(seams, width, height, ao, sh, filter);
     let cross_page = (!anchors.is_empty()).then(|| CrossPageFigures {
@@ -319,7 +320,21 @@ pub fn stitch_page(
         solve,
         cross_page,
     };
-    (report, range)
+    Stitched {
+        report,
+        range,
+        components,
+    }
+}
+
+/// What [`stitch_page`] did.
+pub struct Stitched {
+    pub report: SeamReport,
+    /// The range the solve kept (none without the border fit's points).
+    pub range: Option<SolveRange>,
+    /// The first solve's and the active set's second's unknowns (texels)
+    /// and each one's component.
+    pub components: [(Vec<u32>, Vec<u32>); 2],
 }
 
 /// The solve's values (`channels` per texel of `texels`) into the page's

@@ -44,6 +44,11 @@ pub struct StitchStats {
     pub converged: bool,
 }
 
+/// A solve's unknowns' texels, their values (`channels` each), the
+/// solve's stats and per unknown its component's index (the unknowns come
+/// in component order).
+pub type Solution = (Vec<u32>, Vec<f32>, StitchStats, Vec<u32>);
+
 /// A constraint's free part in a component's own indices.
 type LocalRow = Vec<(usize, f64)>;
 
@@ -98,7 +103,7 @@ pub fn stitch(
     fixed: impl Fn(u32) -> bool,
     data_weight: &(dyn Fn(u32) -> f64 + Sync),
     baked: impl Fn(u32, &mut [f32]) + Sync,
-) -> (Vec<u32>, Vec<f32>, StitchStats) {
+) -> Solution {
     // Each row's taps (texel, weight), its anchor and scale, built in
     // parallel and pushed in order (the unknowns are numbered in the order
     // they first appear): two-sided points (side A positive, side B
@@ -217,7 +222,7 @@ impl<F: Fn(u32) -> bool> System<F> {
         channels: usize,
         baked: impl Fn(u32, &mut [f32]) + Sync,
         target: impl Fn(usize) -> &'t [f32] + Sync,
-    ) -> (Vec<u32>, Vec<f32>, StitchStats) {
+    ) -> Solution {
         self.solve_weighted(channels, &|_| 1.0, baked, target)
     }
 
@@ -230,7 +235,7 @@ impl<F: Fn(u32) -> bool> System<F> {
         data_weight: &(dyn Fn(u32) -> f64 + Sync),
         baked: impl Fn(u32, &mut [f32]) + Sync,
         target: impl Fn(usize) -> &'t [f32] + Sync,
-    ) -> (Vec<u32>, Vec<f32>, StitchStats) {
+    ) -> Solution {
         let System { texel_of, rows, .. } = self;
         let n = texel_of.len();
         if n == 0 || rows.is_empty() {
@@ -238,7 +243,7 @@ impl<F: Fn(u32) -> bool> System<F> {
                 converged: true,
                 ..Default::default()
             };
-            return (Vec::new(), Vec::new(), stats);
+            return (Vec::new(), Vec::new(), stats, Vec::new());
         }
         // Components: unknowns tied by a row (union-find).
         let mut parent: Vec<u32> = (0..n as u32).collect();
@@ -383,13 +388,15 @@ impl<F: Fn(u32) -> bool> System<F> {
             converged: true,
         };
         let (mut texels, mut values) = (Vec::with_capacity(n), Vec::with_capacity(n * channels));
-        for (_, (t, out, iterations, converged)) in solved {
+        let mut component = Vec::with_capacity(n);
+        for (c, (t, out, iterations, converged)) in solved {
             stats.max_iterations = stats.max_iterations.max(iterations);
             stats.converged &= converged;
+            component.extend(std::iter::repeat_n(c as u32, t.len()));
             texels.extend(t);
             values.extend(out);
         }
-        (texels, values, stats)
+        (texels, values, stats, component)
     }
 }
 
@@ -421,7 +428,7 @@ mod tests {
         let jump =
             |v: &[f32]| super::super::metric::measure(&[seam], w, h, v, &sh, Filter::Bilinear);
         assert!(jump(&values).ao_mean > 0.08);
-        let (texels, new, stats) = stitch(
+        let (texels, new, stats, _) = stitch(
             &[seam],
             &[],
             &[],
@@ -466,7 +473,7 @@ mod tests {
                 weight: 1.0,
             })
             .collect();
-        let (texels, new, stats) = stitch(
+        let (texels, new, stats, _) = stitch(
             &[],
             &anchors,
             &[],
