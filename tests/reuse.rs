@@ -463,6 +463,42 @@ fn an_edit_on_prevs_atlas_changes_only_the_texels_within_reach_of_it() {
 }
 
 #[test]
+fn an_edit_rebakes_only_the_texels_it_can_change_with_the_bytes_of_rebaking_all() {
+    // The cube moved 0.3 along x on a 256 page: the texels the edit can
+    // change are baked again, written over PREV's, and the file is byte
+    // for byte a bake of every texel on the same atlas (`--rebake all`).
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name);
+    let (before, after) = (p("before.glb"), p("after.glb"));
+    std::fs::write(&before, floor_and_cube(-3.0)).unwrap();
+    std::fs::write(&after, floor_and_cube(-2.7)).unwrap();
+    let run = |input: &Path, out: &Path, extra: &[&str]| -> Value {
+        let report = out.with_extension("json");
+        let mut args = vec![input.to_str().unwrap(), out.to_str().unwrap()];
+        args.extend_from_slice(&["--resolution", "256", "--max-distance", "1.0"]);
+        args.extend_from_slice(&["--report", report.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        let o = aobake(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&std::fs::read(report).unwrap()).unwrap()
+    };
+    let prev = p("prev.glb");
+    run(&before, &prev, &[]);
+    let prev_arg = prev.to_str().unwrap();
+    let (out, all) = (p("out.glb"), p("all.glb"));
+    let report = run(&after, &out, &["--reuse", prev_arg]);
+    let all_report = run(&after, &all, &["--reuse", prev_arg, "--rebake", "all"]);
+    let baked = |r: &Value| r["reuse"]["texels_baked"].as_u64().unwrap();
+    assert!(
+        baked(&report) * 2 < baked(&all_report),
+        "{} of {} texels baked",
+        baked(&report),
+        baked(&all_report)
+    );
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(&all).unwrap());
+}
+
+#[test]
 fn a_prev_that_cannot_be_read_or_is_out_is_an_error() {
     let dir = tempfile::tempdir().unwrap();
     let prev = dir.path().join("prev.glb");

@@ -397,15 +397,31 @@ pub fn dirty(
     space: &BakeSpace,
     max_distance: f32,
 ) -> Vec<bool> {
+    dirty_within(receivers, boxes, space, max_distance, 0.0)
+}
+
+/// [`dirty`] with each receiver's reach grown by `texels` of its
+/// footprint: the receivers next to a surface point (a border fit's point
+/// in their cell) that the edit reaches.
+pub fn dirty_within(
+    receivers: &Receivers,
+    boxes: &[Option<[f64; 6]>],
+    space: &BakeSpace,
+    max_distance: f32,
+    texels: f32,
+) -> Vec<bool> {
     let Some(boxes) = boxes_in(boxes, space) else {
         return vec![true; receivers.len()];
     };
     // The ray origin's offset along the normal is 1e-5 of the diagonal at
     // most (the contract's); a thousandth more for rounding.
     let reach = (max_distance as f64 + 2e-5) * (1.0 + 1e-3) + 1e-6;
-    (receivers.position.par_iter())
+    (receivers.position.par_iter().zip(&receivers.footprint))
         .with_min_len(4096)
-        .map(|p| within(p.as_dvec3(), p.as_dvec3(), &boxes, reach))
+        .map(|(p, &f)| {
+            let reach = reach + (texels * f.max(0.0)) as f64;
+            within(p.as_dvec3(), p.as_dvec3(), &boxes, reach)
+        })
         .collect()
 }
 

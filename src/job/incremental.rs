@@ -108,6 +108,7 @@ pub(crate) fn check(
             texels_baked: 0,
             texels_dirty: 0,
             pages_reused: 0,
+            pages_whole: Vec::new(),
         }),
         carried,
     })))
@@ -142,7 +143,7 @@ pub(crate) fn level(job: &mut Job, plan: &mut Plan) -> Result<(Level, Vec<Option
     }
     let pages = level.page_count() as usize;
     // PREV's images leave the carry (which every baked page copies): a
-    // page no ray of the edit reaches takes them, the others drop them.
+    // page no ray of the edit reaches takes them; a dirty one keeps them.
     let mut from_prev = vec![None; pages];
     if let Some(carries) = &mut job.carry {
         let images: Vec<Option<Encoded>> = carries.iter_mut().map(|c| c.images.take()).collect();
@@ -154,8 +155,16 @@ pub(crate) fn level(job: &mut Job, plan: &mut Plan) -> Result<(Level, Vec<Option
                 boxes,
                 level.max_distance,
             );
-            from_prev = (images.into_iter().zip(&dirty))
-                .map(|(e, &d)| if d { None } else { e })
+            // A dirty page keeps them: it may rebake only the texels the
+            // edit reaches, and write them over PREV's (`job/partial.rs`).
+            from_prev = (images.into_iter().zip(&dirty).zip(carries.iter_mut()))
+                .map(|((e, &d), c)| match d {
+                    true => {
+                        c.images = e;
+                        None
+                    }
+                    false => e,
+                })
                 .collect();
             job.across_pages = Some(from_prev.iter().map(Option::is_none).collect());
         }
@@ -177,6 +186,9 @@ impl Plan {
         r.texels_baked = done.iter().map(|d| d.texels).sum();
         r.texels_dirty = dirty.unwrap_or(r.texels_baked);
         r.pages_reused = pages_reused;
+        r.pages_whole = (done.iter())
+            .filter_map(|d| Some((d.page, d.whole.clone()?)))
+            .collect();
         Some(r)
     }
 }

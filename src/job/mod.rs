@@ -39,6 +39,7 @@ pub mod device;
 pub(crate) mod incremental;
 pub(crate) mod level;
 pub(crate) mod page;
+pub(crate) mod partial;
 pub(crate) mod report;
 pub mod reuse;
 pub mod settings;
@@ -181,16 +182,26 @@ impl<'a> Job<'a> {
                 *count += dirty.iter().filter(|&&d| d).count();
                 page.dirty = Some(dirty);
             }
-            let passes = page.bake(s, run, &mut self.timer)?;
-            let out = page.finish(&passes, s, run, &mut self.timer)?;
-            done.push(PageDone::new(
-                k,
-                page.receivers.len(),
-                passes.inside(&page),
-                &passes,
-                &out,
-                s,
-            ));
+            // With PREV's images (`--rebake changed`): only the texels the
+            // edit can change, when the page allows it.
+            let rebaked = match (&self.edit, &page.carry.images) {
+                (Some((boxes, _)), Some(_)) => {
+                    partial::rebake(&page, boxes, s, run, &mut self.timer)?
+                }
+                _ => Err(String::new()),
+            };
+            let whole = rebaked.as_ref().err().filter(|w| !w.is_empty()).cloned();
+            let (passes, out, texels) = match rebaked.ok() {
+                Some(r) => (r.passes, r.out, r.baked),
+                None => {
+                    let passes = page.bake(s, run, &mut self.timer)?;
+                    let out = page.finish(&passes, s, run, &mut self.timer)?;
+                    (passes, out, page.receivers.len())
+                }
+            };
+            let mut page_done = PageDone::new(k, texels, passes.inside(&page), &passes, &out, s);
+            page_done.whole = whole;
+            done.push(page_done);
             keep(page, passes, out);
             // A GPU that failed mid-bake left the rest to the CPU: an
             // error where the GPU was asked for (at once, no page more),

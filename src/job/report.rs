@@ -40,6 +40,8 @@ pub struct PageDone {
     pub engine_view: Option<EngineView>,
     /// Seconds of the method's passes.
     pub pass_seconds: f64,
+    /// A page an edit reaches baked whole: why not texel by texel.
+    pub whole: Option<String>,
 }
 
 impl PageDone {
@@ -72,6 +74,7 @@ impl PageDone {
             border: out.border,
             engine_view: out.engine_view,
             pass_seconds: total(&passes.stages),
+            whole: None,
         }
     }
 }
@@ -482,6 +485,7 @@ pub(crate) fn reused_report(
             texels_baked: 0,
             texels_dirty: 0,
             pages_reused: pages.len(),
+            pages_whole: Vec::new(),
         }),
         ..Report::default()
     }

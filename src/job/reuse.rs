@@ -511,9 +511,8 @@ pub struct ReuseReport {
     pub prev: String,
     /// PREV was taken as the output (nothing the bake reads changed).
     pub reused: bool,
-    /// PREV's atlas, allocation scales and encoding ranges were carried
-    /// into this bake ([`carry`]): texels out of an edit's reach are
-    /// PREV's.
+    /// PREV's page-wide numbers were carried into this bake ([`carry`]):
+    /// texels out of an edit's reach are PREV's.
     pub carried: bool,
     /// Why every texel was baked, when they were.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -522,14 +521,16 @@ pub struct ReuseReport {
     /// went.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub nodes: Option<NodeChanges>,
-    /// Texels this run baked (every texel of the atlas on a full bake).
+    /// Texels baked: the atlas's on a full bake, a part's on a page by texels.
     pub texels_baked: usize,
-    /// Receivers an edit could change: those within reach of the changed
-    /// nodes on a carried bake ([`carry::dirty`]), every texel baked on a
-    /// full bake, none when PREV is reused.
+    /// Receivers an edit could change ([`carry::dirty`]; every texel baked
+    /// on a full bake, none when PREV is reused).
     pub texels_dirty: usize,
     /// Atlas pages whose images are PREV's (all of them when reused).
     pub pages_reused: usize,
+    /// Pages an edit reaches baked whole, and why ([`super::partial`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub pages_whole: Vec<(u32, String)>,
 }
 
 #[cfg(test)]

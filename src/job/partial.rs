@@ -1,0 +1,168 @@
+//! A page an edit reaches, rebaked texel by texel (`--reuse PREV`,
+//! `--rebake changed`): only the receivers near the texels the edit can
+//! change are baked, the lightmap stage knows only what they decide, and
+//! the known texels are written over PREV's images.
+//!
+//! In: a [`Page`] carrying PREV's images, solve range and inside marks,
+//! its dirty receivers, the edit's boxes and the settings. Out: the part's
+//! [`BakePasses`] and the page's [`PageOutput`], whose images are the
+//! bytes a bake of the whole page writes; or why the page must be baked
+//! whole.
+//!
+//! Why it is exact: a receiver's value reads only receivers within
+//! [`PageWide::halo`] texels once the page-wide numbers are carried
+//! ([`Page::bake_part`]); the lightmap stage carries "not known" as NaN
+//! ([`crate::lightmap::build`]); and [`known::missing`] checks that every
+//! texel the edit can change is known. Every other texel is PREV's, and
+//! PREV's bytes decode and encode back to themselves on PREV's ranges.
+
+use super::carry;
+use super::page::{BakePasses, Page, PageOutput};
+use crate::bake::adaptive::PageWide;
+use crate::error::Result;
+use crate::job::settings::{BakeSettings, Method, RunOptions};
+use crate::lightmap::{Filter, dilate, known};
+use crate::stage::StageTimer;
+use rayon::prelude::*;
+
+/// Texels past the halo that the part reaches beyond the changed texels,
+/// for the solve's components around them.
+const MARGIN: u32 = 16;
+
+/// A fit point next to a receiver lies within this many of its
+/// footprints (a cell's diagonal and the conservative edge's offset).
+const POINT_REACH: f32 = 2.0;
+
+/// What [`rebake`] made of a page.
+pub(crate) struct Rebaked {
+    pub passes: BakePasses,
+    pub out: PageOutput,
+    /// The receivers baked.
+    pub baked: usize,
+}
+
+/// Rebakes only the texels of `page` that the edit (`boxes`, the changed
+/// nodes' world boxes) can change; `Ok(Err(why))` when the page must be
+/// baked whole.
+pub(crate) fn rebake(
+    page: &Page,
+    boxes: &[Option<[f64; 6]>],
+    s: &BakeSettings,
+    run: &RunOptions,
+    timer: &mut StageTimer,
+) -> Result<std::result::Result<Rebaked, String>> {
+    let level = page.level;
+    let c = &page.carry;
+    let (Some(images), Some(_), Some(runs)) = (&c.images, &c.solve_range, &c.inside) else {
+        return Ok(Err("PREV does not record the page's solve".into()));
+    };
+    if s.filter != Filter::Bilinear || s.method == Method::Sheared {
+        return Ok(Err("bicubic pages and the sheared filter bake whole".into()));
+    }
+    if !level.cross_seams.is_empty() {
+        return Ok(Err("the page has seams to other pages".into()));
+    }
+    let r = &page.receivers;
+    let (w, h) = (r.width as usize, r.height as usize);
+    let Some(marked) = carry::inside_texels(runs, w * h) else {
+        return Ok(Err("PREV's inside marks do not read".into()));
+    };
+    let prev_inside: Vec<bool> = r.texel.iter().map(|&t| marked[t as usize]).collect();
+    let space = &level.geometry.space;
+    let wide = carry::dirty_within(r, boxes, space, level.max_distance, POINT_REACH);
+    let mut changed = vec![false; w * h];
+    for (&t, &d) in r.texel.iter().zip(&wide) {
+        changed[t as usize] |= d;
+    }
+    let reach = PageWide::halo(&s.adaptive) + MARGIN;
+    let near = grow(&grow(&changed, 1, w, h), reach, w, h);
+    let part: Vec<u32> = (0..r.len() as u32)
+        .filter(|&j| near[r.texel[j as usize] as usize])
+        .collect();
+    if part.len() == r.len() {
+        return Ok(Err("the edit reaches every texel".into()));
+    }
+    let (_, passes) = page.bake_part(&part, s, run, timer)?;
+    // The page's inside marks: PREV's, the part's own over them.
+    let mut inside = prev_inside.clone();
+    let own = passes.inside(page);
+    for (k, &j) in part.iter().enumerate() {
+        inside[j as usize] = match own.len() == part.len() {
+            true => own[k],
+            false => own.get(j as usize).copied().unwrap_or(false),
+        };
+    }
+    // Texels whose fill changes, or shows a dirty receiver, change too.
+    let before = dilate::fill_map(r.width, r.height, &r.texel, &prev_inside);
+    let after = dilate::fill_map(r.width, r.height, &r.texel, &inside);
+    for (t, (&a, &b)) in before.iter().zip(&after).enumerate() {
+        changed[t] |= a != b || (b != dilate::NONE && wide[b as usize]);
+    }
+    let built = page.lightmap_part(&part, &passes, &inside, s, timer)?;
+    if let Some(components) = &built.components {
+        let missing = known::missing(&built.lightmap, components, &changed);
+        if missing > 0 {
+            return Ok(Err(format!(
+                "the edit's reach leaves the part ({missing} texels)"
+            )));
+        }
+    } else if changed
+        .iter()
+        .zip(&built.lightmap.ao)
+        .any(|(&c, a)| c && !a.is_finite())
+    {
+        return Ok(Err("the edit's reach leaves the part".into()));
+    }
+    // PREV's texels, the known ones written over them.
+    timer.restart();
+    let mut lm = crate::encode::decode(images)?;
+    let new = built.lightmap;
+    if lm.ao.len() != new.ao.len() || lm.visibility.is_some() != new.visibility.is_some() {
+        return Ok(Err("PREV's images do not match the page".into()));
+    }
+    for t in (0..new.ao.len()).filter(|&t| new.ao[t].is_finite()) {
+        lm.ao[t] = new.ao[t];
+        lm.sh[t] = new.sh[t];
+        if let (Some(to), Some(from)) = (&mut lm.visibility, &new.visibility) {
+            to[t] = from[t];
+        }
+    }
+    lm.covered = new.covered;
+    let mut encoded = crate::encode::encode_in(&lm, s.visibility_order, c.ranges.as_ref())?;
+    encoded.scale = c.scale;
+    encoded.solve_range = built.solve_range;
+    encoded.inside = Some(carry::inside_runs(&r.texel, &inside));
+    timer.lap("encode");
+    let engine_view = page.engine_view(&encoded, s, run)?;
+    let out = PageOutput {
+        lightmap: lm,
+        encoded,
+        seams: None,
+        border: None,
+        engine_view,
+    };
+    Ok(Ok(Rebaked {
+        passes,
+        out,
+        baked: part.len(),
+    }))
+}
+
+/// `mask` grown by `by` texels (Chebyshev), rows then columns.
+fn grow(mask: &[bool], by: u32, w: usize, h: usize) -> Vec<bool> {
+    let by = by as usize;
+    let rows: Vec<bool> = (0..w * h)
+        .into_par_iter()
+        .map(|t| {
+            let (x, y) = (t % w, t / w);
+            (x.saturating_sub(by)..=(x + by).min(w - 1)).any(|x| mask[y * w + x])
+        })
+        .collect();
+    (0..w * h)
+        .into_par_iter()
+        .map(|t| {
+            let (x, y) = (t % w, t / w);
+            (y.saturating_sub(by)..=(y + by).min(h - 1)).any(|y| rows[y * w + x])
+        })
+        .collect()
+}
