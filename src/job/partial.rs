@@ -29,6 +29,15 @@ use rayon::prelude::*;
 /// for the solve's components around them.
 const MARGIN: u32 = 16;
 
+/// Parts tried, each grown by what the one before did not know, before
+/// the page is baked whole.
+const ATTEMPTS: u32 = 3;
+
+/// The largest share of a page's receivers a part may hold: past it, the
+/// part's bake and the lightmap stage's passes over the whole page cost
+/// about what baking the page whole costs.
+const MOST_OF_PAGE: f64 = 0.4;
+
 /// A fit point next to a receiver lies within this many of its
 /// footprints (a cell's diagonal and the conservative edge's offset).
 const POINT_REACH: f32 = 2.0;
@@ -75,44 +84,60 @@ pub(crate) fn rebake(
         changed[t as usize] |= d;
     }
     let reach = PageWide::halo(&s.adaptive) + MARGIN;
-    let near = grow(&grow(&changed, 1, w, h), reach, w, h);
-    let part: Vec<u32> = (0..r.len() as u32)
-        .filter(|&j| near[r.texel[j as usize] as usize])
-        .collect();
-    if part.len() == r.len() {
-        return Ok(Err("the edit reaches every texel".into()));
-    }
-    let (_, passes) = page.bake_part(&part, s, run, timer)?;
-    // The page's inside marks: PREV's, the part's own over them.
-    let mut inside = prev_inside.clone();
-    let own = passes.inside(page);
-    for (k, &j) in part.iter().enumerate() {
-        inside[j as usize] = match own.len() == part.len() {
-            true => own[k],
-            false => own.get(j as usize).copied().unwrap_or(false),
-        };
-    }
-    // Texels whose fill changes, or shows a dirty receiver, change too.
-    let before = dilate::fill_map(r.width, r.height, &r.texel, &prev_inside);
-    let after = dilate::fill_map(r.width, r.height, &r.texel, &inside);
-    for (t, (&a, &b)) in before.iter().zip(&after).enumerate() {
-        changed[t] |= a != b || (b != dilate::NONE && wide[b as usize]);
-    }
-    let built = page.lightmap_part(&part, &passes, &inside, s, timer)?;
-    if let Some(components) = &built.components {
-        let missing = known::missing(&built.lightmap, components, &changed);
-        if missing > 0 {
+    // The texels the part must know: the changed ones, then those the
+    // check finds missing (the solve's components reach far along the
+    // charts' bands and gutters), until none is or the page is whole.
+    let mut need = changed.clone();
+    let mut attempt = 0;
+    let (part, passes, inside, built) = loop {
+        attempt += 1;
+        let near = grow(&grow(&need, 1, w, h), reach, w, h);
+        let part: Vec<u32> = (0..r.len() as u32)
+            .filter(|&j| near[r.texel[j as usize] as usize])
+            .collect();
+        if part.len() as f64 > MOST_OF_PAGE * r.len() as f64 {
             return Ok(Err(format!(
-                "the edit's reach leaves the part ({missing} texels)"
+                "the edit's reach covers {} of the page's {} receivers",
+                part.len(),
+                r.len()
             )));
         }
-    } else if changed
-        .iter()
-        .zip(&built.lightmap.ao)
-        .any(|(&c, a)| c && !a.is_finite())
-    {
-        return Ok(Err("the edit's reach leaves the part".into()));
-    }
+        let (_, passes) = page.bake_part(&part, s, run, timer)?;
+        // The page's inside marks: PREV's, the part's own over them.
+        let mut inside = prev_inside.clone();
+        let own = passes.inside(page);
+        for (k, &j) in part.iter().enumerate() {
+            inside[j as usize] = match own.len() == part.len() {
+                true => own[k],
+                false => own.get(j as usize).copied().unwrap_or(false),
+            };
+        }
+        // Texels whose fill changes, or shows a dirty receiver, change too.
+        let before = dilate::fill_map(r.width, r.height, &r.texel, &prev_inside);
+        let after = dilate::fill_map(r.width, r.height, &r.texel, &inside);
+        for (t, (&a, &b)) in before.iter().zip(&after).enumerate() {
+            changed[t] |= a != b || (b != dilate::NONE && wide[b as usize]);
+        }
+        let built = page.lightmap_part(&part, &passes, &inside, s, timer)?;
+        let missing = match &built.components {
+            Some(components) => known::missing(&built.lightmap, components, &changed),
+            None => (changed.iter().zip(&built.lightmap.ao))
+                .map(|(&c, a)| c && !a.is_finite())
+                .collect(),
+        };
+        let count = missing.iter().filter(|&&m| m).count();
+        if count == 0 {
+            break (part, passes, inside, built);
+        }
+        if attempt == ATTEMPTS {
+            return Ok(Err(format!(
+                "the edit's reach leaves the part ({count} texels after {ATTEMPTS} parts)"
+            )));
+        }
+        for (n, (&m, &c)) in need.iter_mut().zip(missing.iter().zip(&changed)) {
+            *n |= m || c;
+        }
+    };
     // PREV's texels, the known ones written over them.
     timer.restart();
     let mut lm = crate::encode::decode(images)?;

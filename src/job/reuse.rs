@@ -528,7 +528,7 @@ pub struct ReuseReport {
     pub texels_dirty: usize,
     /// Atlas pages whose images are PREV's (all of them when reused).
     pub pages_reused: usize,
-    /// Pages an edit reaches baked whole, and why ([`super::partial`]).
+    /// Pages an edit reaches baked whole, and why (`job/partial.rs`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub pages_whole: Vec<(u32, String)>,
 }

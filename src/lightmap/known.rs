@@ -6,7 +6,7 @@
 //! see its doc for how NaN travels), the solve's components
 //! ([`super::seams::Stitched::components`]) and the texels whose inputs an
 //! edit changed. Out: the texels made NaN next to those not known
-//! ([`unknown_cells_to_nan`]), and the texels that may change but are not
+//! (`unknown_cells_to_nan`), and the texels that may change but are not
 //! known ([`missing`]): none, and every texel outside the known ones
 //! keeps its earlier bake's value.
 
@@ -49,10 +49,14 @@ pub(crate) fn unknown_cells_to_nan(lm: &mut Lightmap) -> Vec<bool> {
 /// edit can change: S1, the first solve's components with a texel within
 /// one of a changed one (a row reads its cell's four taps); W, the texels
 /// within two of S1 and the changed ones; S2, the second solve's
-/// components with a texel within one of W. Returns how many texels of
-/// W and S2 are NaN: with none, the known texels written over the earlier
-/// bake's give the whole page's bake.
-pub fn missing(lm: &Lightmap, components: &[(Vec<u32>, Vec<u32>); 2], changed: &[bool]) -> usize {
+/// components with a texel within one of W. Returns per texel whether it
+/// is in W or S2 and NaN: with none, the known texels written over the
+/// earlier bake's give the whole page's bake.
+pub fn missing(
+    lm: &Lightmap,
+    components: &[(Vec<u32>, Vec<u32>); 2],
+    changed: &[bool],
+) -> Vec<bool> {
     let (w, h) = (lm.width as usize, lm.height as usize);
     let grow = |mask: &[bool], by: usize| -> Vec<bool> {
         (0..w * h)
@@ -83,8 +87,9 @@ pub fn missing(lm: &Lightmap, components: &[(Vec<u32>, Vec<u32>); 2], changed: &
     let within = grow(&either, 2);
     let s2 = touched(&components[1], &grow(&within, 1));
     (0..w * h)
-        .filter(|&t| (within[t] || s2[t]) && !lm.ao[t].is_finite())
-        .count()
+        .into_par_iter()
+        .map(|t| (within[t] || s2[t]) && !lm.ao[t].is_finite())
+        .collect()
 }
 
 /// The border fit's rows of a page of which part is known: `traced`

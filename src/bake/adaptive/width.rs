@@ -64,7 +64,7 @@ pub fn exact_depth(footprint: &[f32], o: &AdaptiveOptions, max_distance: f32) ->
 }
 
 /// The two page-wide depths the pre-pass cuts its rays at, from every
-/// receiver's footprint on the page ([`exact_depth`], [`contact_depth`]).
+/// receiver's footprint on the page (`exact_depth`, `contact_depth`).
 /// A bake of part of a page (`--reuse`: only the texels an edit reaches)
 /// takes them from the whole page, so its receivers trace what the whole
 /// page's bake traces.
