@@ -74,8 +74,10 @@ struct BakeArgs {
     /// on PREV's atlas; else every texel is baked and a line says why
     #[arg(long, value_name = "PREV")]
     reuse: Option<PathBuf>,
-    /// With --reuse: bake again the pages an edit can change, or all
-    /// (on PREV's atlas when it is kept) [default: changed]
+    /// With --reuse: bake again the pages an edit can change; texels: on
+    /// them only the texels it can change where the page's solve allows
+    /// (else the page, after a try); or all (on PREV's atlas when it is
+    /// kept) [default: changed]
     #[arg(long, value_enum, value_name = "WHAT")]
     rebake: Option<Rebake>,
     #[command(flatten)]

@@ -464,9 +464,10 @@ fn an_edit_on_prevs_atlas_changes_only_the_texels_within_reach_of_it() {
 
 #[test]
 fn an_edit_rebakes_only_the_texels_it_can_change_with_the_bytes_of_rebaking_all() {
-    // The cube moved 0.3 along x on a 256 page: the texels the edit can
-    // change are baked again, written over PREV's, and the file is byte
-    // for byte a bake of every texel on the same atlas (`--rebake all`).
+    // The cube moved 0.3 along x on a 256 page, `--rebake texels`: the
+    // texels the edit can change are baked again, written over PREV's, and
+    // the file is byte for byte a bake of every texel on the same atlas
+    // (`--rebake all`).
     let dir = tempfile::tempdir().unwrap();
     let p = |name: &str| dir.path().join(name);
     let (before, after) = (p("before.glb"), p("after.glb"));
@@ -486,7 +487,7 @@ fn an_edit_rebakes_only_the_texels_it_can_change_with_the_bytes_of_rebaking_all(
     run(&before, &prev, &[]);
     let prev_arg = prev.to_str().unwrap();
     let (out, all) = (p("out.glb"), p("all.glb"));
-    let report = run(&after, &out, &["--reuse", prev_arg]);
+    let report = run(&after, &out, &["--reuse", prev_arg, "--rebake", "texels"]);
     let all_report = run(&after, &all, &["--reuse", prev_arg, "--rebake", "all"]);
     let baked = |r: &Value| r["reuse"]["texels_baked"].as_u64().unwrap();
     assert!(

@@ -87,7 +87,7 @@ pub(crate) fn check(
         Decision::Full(why, nodes) => (why, nodes, None),
         // A shard asked for PREV as it is: every page is PREV's.
         Decision::Edited(_, nodes, record)
-            if shard && rebake == Rebake::Changed && nodes == Default::default() =>
+            if shard && rebake != Rebake::All && nodes == Default::default() =>
         {
             (
                 "nothing the bake reads changed (a shard takes PREV's pages)".into(),
@@ -143,11 +143,11 @@ pub(crate) fn level(job: &mut Job, plan: &mut Plan) -> Result<(Level, Vec<Option
     }
     let pages = level.page_count() as usize;
     // PREV's images leave the carry (which every baked page copies): a
-    // page no ray of the edit reaches takes them; a dirty one keeps them.
+    // page no ray of the edit reaches takes them.
     let mut from_prev = vec![None; pages];
     if let Some(carries) = &mut job.carry {
         let images: Vec<Option<Encoded>> = carries.iter_mut().map(|c| c.images.take()).collect();
-        if let (Some((boxes, _)), Rebake::Changed) = (&job.edit, plan.rebake) {
+        if let (Some((boxes, _)), Rebake::Changed | Rebake::Texels) = (&job.edit, plan.rebake) {
             let dirty = carry::dirty_pages(
                 &level.geometry,
                 &level.atlas,
@@ -155,12 +155,14 @@ pub(crate) fn level(job: &mut Job, plan: &mut Plan) -> Result<(Level, Vec<Option
                 boxes,
                 level.max_distance,
             );
-            // A dirty page keeps them: it may rebake only the texels the
-            // edit reaches, and write them over PREV's (`job/partial.rs`).
+            // With `--rebake texels` a dirty page keeps them: it may rebake
+            // only the texels the edit reaches, and write them over PREV's
+            // (`job/partial.rs`).
+            let texels = plan.rebake == Rebake::Texels;
             from_prev = (images.into_iter().zip(&dirty).zip(carries.iter_mut()))
                 .map(|((e, &d), c)| match d {
                     true => {
-                        c.images = e;
+                        c.images = e.filter(|_| texels);
                         None
                     }
                     false => e,

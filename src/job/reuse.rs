@@ -395,15 +395,16 @@ pub fn moved_uris(doc: &Document, prev: &Path, output: &Path) -> bool {
     relative && dir(prev) != dir(output)
 }
 
-/// What `--reuse PREV` bakes again (`--rebake`): `Changed`, what an edit
-/// can change (with an unchanged input nothing: PREV is the output);
-/// `All`, every texel (PREV is checked, not used).
+/// What `--reuse PREV` bakes again (`--rebake`): the pages an edit can change (none for an
+/// unchanged input: PREV is the output), with `Texels` on them only the texels it can change
+/// where the page's solve allows (`job/partial.rs`); `All`: every texel (PREV checked).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Rebake {
     #[default]
     Changed,
+    Texels,
     All,
 }
 
@@ -523,8 +524,7 @@ pub struct ReuseReport {
     pub nodes: Option<NodeChanges>,
     /// Texels baked: the atlas's on a full bake, a part's on a page by texels.
     pub texels_baked: usize,
-    /// Receivers an edit could change ([`carry::dirty`]; every texel baked
-    /// on a full bake, none when PREV is reused).
+    /// Receivers an edit could change ([`carry::dirty`]; all on a full bake, none if reused).
     pub texels_dirty: usize,
     /// Atlas pages whose images are PREV's (all of them when reused).
     pub pages_reused: usize,
