@@ -313,57 +313,54 @@ fn a_part_of_a_page_bakes_to_the_whole_pages_values_a_halo_inside_it() {
     // receivers within the halo of a window of the page; every receiver
     // of the window must get the whole page's value bit for bit, and
     // without the halo some must not (the neighbours feed the filter).
-    let sc = bundled_scene("flight_helmet.glb");
-    let mut s = adaptive(128, 64, None);
-    s.visibility = aobake::job::settings::VisibilityMode::All;
-    let (quiet, mut timer) = (&aobake::RunOptions::QUIET, aobake::stage::StageTimer::new());
-    let level = aobake::job::Level::new(&sc, &s, quiet, &mut timer).expect("level");
-    let mut page = level.page(0, &sc, &mut timer).expect("page");
-    let whole = page.bake(&s, quiet, &mut timer).expect("whole");
-    // The allocation's scale is the whole page's (PREV's, in a rebake).
-    page.carry.scale = whole.adaptive_stats.expect("adaptive").scale;
-    let whole = whole.bake;
-    let r = &page.receivers;
-    let w = r.width as i64;
-    let (x0, x1, y0, y1) = (40i64, 72, 30, 70);
-    let distance = |t: u32| {
-        let (x, y) = (t as i64 % w, t as i64 / w);
-        (x0 - x)
-            .max(x - (x1 - 1))
-            .max(y0 - y)
-            .max(y - (y1 - 1))
-            .max(0)
-    };
-    let halo = aobake::bake::adaptive::PageWide::halo(&s.adaptive) as i64;
-    let mut differing = |grow: i64| {
-        let part: Vec<u32> = (0..r.len() as u32)
-            .filter(|&i| distance(r.texel[i as usize]) <= grow)
-            .collect();
-        let (_, passes) = page.bake_part(&part, &s, quiet, &mut timer).expect("part");
-        let (b, layer) = (&passes.bake, whole.visibility.as_ref().expect("layer"));
-        let (mut window, mut differ) = (0, 0);
-        for (k, &i) in part.iter().enumerate() {
-            if distance(r.texel[i as usize]) > 0 {
-                continue;
+    on_layered_page("flight_helmet.glb", |page, s, timer| {
+        let quiet = &aobake::RunOptions::QUIET;
+        let whole = page.bake(s, quiet, timer).expect("whole");
+        // The allocation's scale is the whole page's (PREV's, in a rebake).
+        page.carry.scale = whole.adaptive_stats.expect("adaptive").scale;
+        let whole = whole.bake;
+        let r = &page.receivers;
+        let w = r.width as i64;
+        let (x0, x1, y0, y1) = (40i64, 72, 30, 70);
+        let distance = |t: u32| {
+            let (x, y) = (t as i64 % w, t as i64 / w);
+            (x0 - x)
+                .max(x - (x1 - 1))
+                .max(y0 - y)
+                .max(y - (y1 - 1))
+                .max(0)
+        };
+        let halo = aobake::bake::adaptive::PageWide::halo(&s.adaptive) as i64;
+        let mut differing = |grow: i64| {
+            let part: Vec<u32> = (0..r.len() as u32)
+                .filter(|&i| distance(r.texel[i as usize]) <= grow)
+                .collect();
+            let passes = page.bake_part(&part, s, quiet, timer).expect("part");
+            let (b, layer) = (&passes.bake, whole.visibility.as_ref().expect("layer"));
+            let (mut window, mut differ) = (0, 0);
+            for (k, &i) in part.iter().enumerate() {
+                if distance(r.texel[i as usize]) > 0 {
+                    continue;
+                }
+                let i = i as usize;
+                window += 1;
+                let v = &b.visibility.as_ref().expect("layer").v[k];
+                let same = b.ao[k].to_bits() == whole.ao[i].to_bits()
+                    && b.sh[k].map(f32::to_bits) == whole.sh[i].map(f32::to_bits)
+                    && v.map(f32::to_bits) == layer.v[i].map(f32::to_bits);
+                differ += !same as usize;
             }
-            let i = i as usize;
-            window += 1;
-            let v = &b.visibility.as_ref().expect("layer").v[k];
-            let same = b.ao[k].to_bits() == whole.ao[i].to_bits()
-                && b.sh[k].map(f32::to_bits) == whole.sh[i].map(f32::to_bits)
-                && v.map(f32::to_bits) == layer.v[i].map(f32::to_bits);
-            differ += !same as usize;
-        }
-        (window, differ)
-    };
-    let (window, differ) = differing(halo);
-    assert!(window > 300, "{window} receivers in the window");
-    assert_eq!(
-        differ, 0,
-        "{differ} of {window} receivers differ with the halo"
-    );
-    let (_, differ) = differing(0);
-    assert!(differ > 0, "without the halo every receiver matched");
+            (window, differ)
+        };
+        let (window, differ) = differing(halo);
+        assert!(window > 300, "{window} receivers in the window");
+        assert_eq!(
+            differ, 0,
+            "{differ} of {window} receivers differ with the halo"
+        );
+        let (_, differ) = differing(0);
+        assert!(differ > 0, "without the halo every receiver matched");
+    });
 }
 
 #[test]
@@ -373,80 +370,94 @@ fn the_lightmap_stage_of_a_part_gives_the_whole_pages_texels_or_nan() {
     // each texel the whole page's value bit for bit, or NaN (not known).
     // (A page of small charts, such as the flight helmet's at 128, is one
     // solve component through its gutters: little of a part is known.)
-    let sc = bundled_scene("cornell_box.glb");
+    on_layered_page("cornell_box.glb", |page, s, timer| {
+        let quiet = &aobake::RunOptions::QUIET;
+        let whole = page.bake(s, quiet, timer).expect("whole");
+        let out = page.finish(&whole, s, quiet, timer).expect("finish");
+        let full = out.lightmap;
+        // What a rebake carries: the allocation's scale and the solve's range.
+        page.carry.scale = whole.adaptive_stats.as_ref().expect("adaptive").scale;
+        page.carry.solve_range = out.encoded.solve_range.clone();
+        let inside = whole.inside(page).to_vec();
+        let r = &page.receivers;
+        let w = r.width as i64;
+        let (x0, x1, y0, y1) = (30i64, 90, 20, 80);
+        let grow = aobake::bake::adaptive::PageWide::halo(&s.adaptive) as i64 + 6;
+        let part: Vec<u32> = (0..r.len() as u32)
+            .filter(|&i| {
+                let t = r.texel[i as usize] as i64;
+                let (x, y) = (t % w, t / w);
+                x >= x0 - grow && x < x1 + grow && y >= y0 - grow && y < y1 + grow
+            })
+            .collect();
+        let passes = page.bake_part(&part, s, quiet, timer).expect("part");
+        let built = page
+            .lightmap_part(&part, &passes, &inside, s, timer)
+            .expect("lightmap of the part");
+        let lm = &built.lightmap;
+        let (full_v, part_v) = (full.visibility.as_ref(), lm.visibility.as_ref());
+        let (mut known, mut differ, mut covered_in_window, mut page_known) = (0, 0, 0, 0);
+        for t in 0..lm.ao.len() {
+            let (x, y) = (t as i64 % w, t as i64 / w);
+            let in_window = x >= x0 && x < x1 && y >= y0 && y < y1;
+            covered_in_window += (in_window && full.covered[t]) as usize;
+            let v = part_v.expect("layer")[t];
+            let finite = lm.ao[t].is_finite()
+                && lm.sh[t].iter().all(|c| c.is_finite())
+                && v.iter().all(|c| c.is_finite());
+            if !finite {
+                continue;
+            }
+            known += (in_window && full.covered[t]) as usize;
+            page_known += full.covered[t] as usize;
+            let same = lm.ao[t].to_bits() == full.ao[t].to_bits()
+                && lm.sh[t].map(f32::to_bits) == full.sh[t].map(f32::to_bits)
+                && v.map(f32::to_bits) == full_v.expect("layer")[t].map(f32::to_bits);
+            differ += !same as usize;
+        }
+        assert_eq!(
+            differ, 0,
+            "{differ} known texels differ from the whole page's"
+        );
+        // Most of the window is known (what is not: texels whose seams or
+        // solve components reach out of the part), and the page outside the
+        // part is not.
+        assert!(
+            known * 10 >= covered_in_window * 9,
+            "{known} of the window's {covered_in_window} covered texels known"
+        );
+        let covered = full.covered.iter().filter(|&&c| c).count();
+        assert!(page_known * 2 < covered, "{page_known} of {covered} known");
+        // An edit that changes a block of texels in the window's middle: every
+        // texel it can change is known. One at the part's edge: not.
+        let block = |cx: i64, cy: i64| -> Vec<bool> {
+            (0..lm.ao.len() as i64)
+                .map(|t| (t % w - cx).abs() <= 3 && (t / w - cy).abs() <= 3)
+                .collect()
+        };
+        let components = built.components.as_ref().expect("stitched");
+        let missing = |cx, cy| {
+            let missing = aobake::lightmap::known::missing(lm, components, &block(cx, cy));
+            missing.iter().filter(|&&m| m).count()
+        };
+        assert_eq!(missing((x0 + x1) / 2, (y0 + y1) / 2), 0);
+        assert!(missing(x1 + grow - 2, (y0 + y1) / 2) > 0);
+    });
+}
+
+/// The bundled scene `name` on one 128 page with the visibility layer,
+/// its page handed to `f` with the settings and a timer: what the tests of
+/// a bake of part of a page start from.
+fn on_layered_page(
+    name: &str,
+    f: impl FnOnce(&mut aobake::job::Page<'_>, &aobake::BakeSettings, &mut aobake::stage::StageTimer),
+) {
+    let sc = bundled_scene(name);
     let mut s = adaptive(128, 64, None);
     s.visibility = aobake::job::settings::VisibilityMode::All;
-    let (quiet, mut timer) = (&aobake::RunOptions::QUIET, aobake::stage::StageTimer::new());
+    let mut timer = aobake::stage::StageTimer::new();
+    let quiet = &aobake::RunOptions::QUIET;
     let level = aobake::job::Level::new(&sc, &s, quiet, &mut timer).expect("level");
     let mut page = level.page(0, &sc, &mut timer).expect("page");
-    let whole = page.bake(&s, quiet, &mut timer).expect("whole");
-    let out = page.finish(&whole, &s, quiet, &mut timer).expect("finish");
-    let full = out.lightmap;
-    // What a rebake carries: the allocation's scale and the solve's range.
-    page.carry.scale = whole.adaptive_stats.as_ref().expect("adaptive").scale;
-    page.carry.solve_range = out.encoded.solve_range.clone();
-    let inside = whole.inside(&page).to_vec();
-    let r = &page.receivers;
-    let w = r.width as i64;
-    let (x0, x1, y0, y1) = (30i64, 90, 20, 80);
-    let grow = aobake::bake::adaptive::PageWide::halo(&s.adaptive) as i64 + 6;
-    let part: Vec<u32> = (0..r.len() as u32)
-        .filter(|&i| {
-            let t = r.texel[i as usize] as i64;
-            let (x, y) = (t % w, t / w);
-            x >= x0 - grow && x < x1 + grow && y >= y0 - grow && y < y1 + grow
-        })
-        .collect();
-    let (_, passes) = page.bake_part(&part, &s, quiet, &mut timer).expect("part");
-    let built = page
-        .lightmap_part(&part, &passes, &inside, &s, &mut timer)
-        .expect("lightmap of the part");
-    let lm = &built.lightmap;
-    let (full_v, part_v) = (full.visibility.as_ref(), lm.visibility.as_ref());
-    let (mut known, mut differ, mut covered_in_window, mut page_known) = (0, 0, 0, 0);
-    for t in 0..lm.ao.len() {
-        let (x, y) = (t as i64 % w, t as i64 / w);
-        let in_window = x >= x0 && x < x1 && y >= y0 && y < y1;
-        covered_in_window += (in_window && full.covered[t]) as usize;
-        let v = part_v.expect("layer")[t];
-        let finite = lm.ao[t].is_finite()
-            && lm.sh[t].iter().all(|c| c.is_finite())
-            && v.iter().all(|c| c.is_finite());
-        if !finite {
-            continue;
-        }
-        known += (in_window && full.covered[t]) as usize;
-        page_known += full.covered[t] as usize;
-        let same = lm.ao[t].to_bits() == full.ao[t].to_bits()
-            && lm.sh[t].map(f32::to_bits) == full.sh[t].map(f32::to_bits)
-            && v.map(f32::to_bits) == full_v.expect("layer")[t].map(f32::to_bits);
-        differ += !same as usize;
-    }
-    assert_eq!(
-        differ, 0,
-        "{differ} known texels differ from the whole page's"
-    );
-    // Most of the window is known (what is not: texels whose seams or
-    // solve components reach out of the part), and the page outside the
-    // part is not.
-    assert!(
-        known * 10 >= covered_in_window * 9,
-        "{known} of the window's {covered_in_window} covered texels known"
-    );
-    let covered = full.covered.iter().filter(|&&c| c).count();
-    assert!(page_known * 2 < covered, "{page_known} of {covered} known");
-    // An edit that changes a block of texels in the window's middle: every
-    // texel it can change is known. One at the part's edge: not.
-    let block = |cx: i64, cy: i64| -> Vec<bool> {
-        (0..lm.ao.len() as i64)
-            .map(|t| (t % w - cx).abs() <= 3 && (t / w - cy).abs() <= 3)
-            .collect()
-    };
-    let components = built.components.as_ref().expect("stitched");
-    let missing = |cx, cy| {
-        let missing = aobake::lightmap::known::missing(lm, components, &block(cx, cy));
-        missing.iter().filter(|&&m| m).count()
-    };
-    assert_eq!(missing((x0 + x1) / 2, (y0 + y1) / 2), 0);
-    assert!(missing(x1 + grow - 2, (y0 + y1) / 2) > 0);
+    f(&mut page, &s, &mut timer);
 }

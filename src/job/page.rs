@@ -24,7 +24,6 @@ use crate::lightmap::engine_view::{self, EngineView};
 use crate::lightmap::seams::SeamReport;
 use crate::lightmap::{self, Lightmap, PageBake};
 use crate::stage::{StageTime, StageTimer, progress_bar};
-use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// One page of a level, prepared: every stage before the first ray. It
@@ -176,16 +175,16 @@ impl Page<'_> {
     /// [`Page::bake`] of the receivers `part` (indices into the page's,
     /// ascending) alone, for the texels an edit reaches (`--reuse`): each
     /// of them at least [`adaptive::PageWide::halo`] texels inside the
-    /// part gets the value the whole page's bake gives it. The part's
-    /// receivers, and their bake. Monte Carlo's receivers are their own
-    /// rays alone; the sheared filter's cells are page-wide (an error).
+    /// part gets the value the whole page's bake gives it (in `part`'s
+    /// order). Monte Carlo's receivers are their own rays alone; the
+    /// sheared filter's cells are page-wide (an error).
     pub fn bake_part(
         &self,
         part: &[u32],
         s: &BakeSettings,
         run: &RunOptions,
         timer: &mut StageTimer,
-    ) -> Result<(Receivers, BakePasses)> {
+    ) -> Result<BakePasses> {
         if s.method == Method::Sheared {
             return Err(Error::option_conflict(
                 "method",
@@ -201,8 +200,7 @@ impl Page<'_> {
                 self.level.max_distance,
             )),
         };
-        let passes = self.bake_receivers(&receivers, page, s, run, timer)?;
-        Ok((receivers, passes))
+        self.bake_receivers(&receivers, page, s, run, timer)
     }
 
     fn bake_receivers(
@@ -511,35 +509,16 @@ pub struct EngineProbe {
 /// Per receiver of `r`: whether it is in `part` (indices into `r`) with
 /// no receiver outside it within `halo` texels (Chebyshev).
 fn deep_in_part(r: &Receivers, part: &[u32], halo: u32) -> Vec<bool> {
-    let (w, h) = (r.width as usize, r.height as usize);
     let mut inside_part = vec![false; r.len()];
     for &j in part {
         inside_part[j as usize] = true;
     }
-    // Texels of receivers outside the part, grown by `halo` (rows, then
-    // columns).
-    let mut outside = vec![false; w * h];
+    // Texels of receivers outside the part, grown by `halo`.
+    let mut outside = vec![false; (r.width * r.height) as usize];
     for (j, &t) in r.texel.iter().enumerate() {
         outside[t as usize] |= !inside_part[j];
     }
-    let halo = halo as usize;
-    let grow = |src: &[bool], along_rows: bool| -> Vec<bool> {
-        (0..w * h)
-            .into_par_iter()
-            .map(|t| {
-                let (x, y) = (t % w, t / w);
-                match along_rows {
-                    true => {
-                        (x.saturating_sub(halo)..=(x + halo).min(w - 1)).any(|x| src[y * w + x])
-                    }
-                    false => {
-                        (y.saturating_sub(halo)..=(y + halo).min(h - 1)).any(|y| src[y * w + x])
-                    }
-                }
-            })
-            .collect()
-    };
-    let near = grow(&grow(&outside, true), false);
+    let near = lightmap::seams::reach(&outside, r.width, r.height, halo);
     (r.texel.iter().zip(&inside_part))
         .map(|(&t, &p)| p && !near[t as usize])
         .collect()

@@ -21,9 +21,9 @@ use super::page::{BakePasses, Page, PageOutput};
 use crate::bake::adaptive::PageWide;
 use crate::error::Result;
 use crate::job::settings::{BakeSettings, Method, RunOptions};
+use crate::lightmap::seams::reach as grow;
 use crate::lightmap::{Filter, dilate, known};
 use crate::stage::StageTimer;
-use rayon::prelude::*;
 
 /// Texels past the halo that the part reaches beyond the changed texels,
 /// for the solve's components around them.
@@ -72,14 +72,14 @@ pub(crate) fn rebake(
         return Ok(Err("the page has seams to other pages".into()));
     }
     let r = &page.receivers;
-    let (w, h) = (r.width as usize, r.height as usize);
-    let Some(marked) = carry::inside_texels(runs, w * h) else {
+    let (w, h) = (r.width, r.height);
+    let Some(marked) = carry::inside_texels(runs, (w * h) as usize) else {
         return Ok(Err("PREV's inside marks do not read".into()));
     };
     let prev_inside: Vec<bool> = r.texel.iter().map(|&t| marked[t as usize]).collect();
     let space = &level.geometry.space;
     let wide = carry::dirty_within(r, boxes, space, level.max_distance, POINT_REACH);
-    let mut changed = vec![false; w * h];
+    let mut changed = vec![false; (w * h) as usize];
     for (&t, &d) in r.texel.iter().zip(&wide) {
         changed[t as usize] |= d;
     }
@@ -88,10 +88,11 @@ pub(crate) fn rebake(
     // check finds missing (the solve's components reach far along the
     // charts' bands and gutters), until none is or the page is whole.
     let mut need = changed.clone();
+    let before = dilate::fill_map(w, h, &r.texel, &prev_inside);
     let mut attempt = 0;
     let (part, passes, inside, built) = loop {
         attempt += 1;
-        let near = grow(&grow(&need, 1, w, h), reach, w, h);
+        let near = grow(&grow(&need, w, h, 1), w, h, reach);
         let part: Vec<u32> = (0..r.len() as u32)
             .filter(|&j| near[r.texel[j as usize] as usize])
             .collect();
@@ -102,7 +103,7 @@ pub(crate) fn rebake(
                 r.len()
             )));
         }
-        let (_, passes) = page.bake_part(&part, s, run, timer)?;
+        let passes = page.bake_part(&part, s, run, timer)?;
         // The page's inside marks: PREV's, the part's own over them.
         let mut inside = prev_inside.clone();
         let own = passes.inside(page);
@@ -113,8 +114,7 @@ pub(crate) fn rebake(
             };
         }
         // Texels whose fill changes, or shows a dirty receiver, change too.
-        let before = dilate::fill_map(r.width, r.height, &r.texel, &prev_inside);
-        let after = dilate::fill_map(r.width, r.height, &r.texel, &inside);
+        let after = dilate::fill_map(w, h, &r.texel, &inside);
         for (t, (&a, &b)) in before.iter().zip(&after).enumerate() {
             changed[t] |= a != b || (b != dilate::NONE && wide[b as usize]);
         }
@@ -171,23 +171,4 @@ pub(crate) fn rebake(
         out,
         baked: part.len(),
     }))
-}
-
-/// `mask` grown by `by` texels (Chebyshev), rows then columns.
-fn grow(mask: &[bool], by: u32, w: usize, h: usize) -> Vec<bool> {
-    let by = by as usize;
-    let rows: Vec<bool> = (0..w * h)
-        .into_par_iter()
-        .map(|t| {
-            let (x, y) = (t % w, t / w);
-            (x.saturating_sub(by)..=(x + by).min(w - 1)).any(|x| mask[y * w + x])
-        })
-        .collect();
-    (0..w * h)
-        .into_par_iter()
-        .map(|t| {
-            let (x, y) = (t % w, t / w);
-            (y.saturating_sub(by)..=(y + by).min(h - 1)).any(|y| rows[y * w + x])
-        })
-        .collect()
 }

@@ -11,7 +11,7 @@
 //! keeps its earlier bake's value.
 
 use super::Lightmap;
-use super::seams::Anchor;
+use super::seams::{Anchor, reach};
 use crate::sh::{SH_COUNT, VIS_COUNT};
 use rayon::prelude::*;
 
@@ -19,16 +19,9 @@ use rayon::prelude::*;
 /// one whose AO is NaN; returns per texel whether its value is known
 /// (finite) after.
 pub(crate) fn unknown_cells_to_nan(lm: &mut Lightmap) -> Vec<bool> {
-    let (w, h) = (lm.width as usize, lm.height as usize);
     let nan: Vec<bool> = lm.ao.iter().map(|a| a.is_nan()).collect();
-    let known: Vec<bool> = (0..w * h)
-        .into_par_iter()
-        .map(|t| {
-            let (x, y) = (t % w, t / w);
-            let (x0, x1) = (x.saturating_sub(1), (x + 1).min(w - 1));
-            let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
-            !(y0..=y1).any(|y| (x0..=x1).any(|x| nan[y * w + x]))
-        })
+    let known: Vec<bool> = (reach(&nan, lm.width, lm.height, 1).iter())
+        .map(|&n| !n)
         .collect();
     for (t, _) in known.iter().enumerate().filter(|&(_, &k)| !k) {
         lm.ao[t] = f32::NAN;
@@ -57,18 +50,8 @@ pub fn missing(
     components: &[(Vec<u32>, Vec<u32>); 2],
     changed: &[bool],
 ) -> Vec<bool> {
-    let (w, h) = (lm.width as usize, lm.height as usize);
-    let grow = |mask: &[bool], by: usize| -> Vec<bool> {
-        (0..w * h)
-            .into_par_iter()
-            .map(|t| {
-                let (x, y) = (t % w, t / w);
-                let (x0, x1) = (x.saturating_sub(by), (x + by).min(w - 1));
-                let (y0, y1) = (y.saturating_sub(by), (y + by).min(h - 1));
-                (y0..=y1).any(|y| (x0..=x1).any(|x| mask[y * w + x]))
-            })
-            .collect()
-    };
+    let n = lm.ao.len();
+    let grow = |mask: &[bool], by: u32| reach(mask, lm.width, lm.height, by);
     // The components with a texel in `near`, and every texel of them.
     let touched = |(texels, component): &(Vec<u32>, Vec<u32>), near: &[bool]| {
         let count = component.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
@@ -76,7 +59,7 @@ pub fn missing(
         for (&t, &c) in texels.iter().zip(component) {
             hit[c as usize] |= near[t as usize];
         }
-        let mut out = vec![false; w * h];
+        let mut out = vec![false; n];
         for (&t, &c) in texels.iter().zip(component) {
             out[t as usize] = hit[c as usize];
         }
@@ -86,7 +69,7 @@ pub fn missing(
     let either: Vec<bool> = s1.iter().zip(changed).map(|(&a, &b)| a || b).collect();
     let within = grow(&either, 2);
     let s2 = touched(&components[1], &grow(&within, 1));
-    (0..w * h)
+    (0..n)
         .into_par_iter()
         .map(|t| (within[t] || s2[t]) && !lm.ao[t].is_finite())
         .collect()

@@ -466,13 +466,22 @@ pub(crate) fn band_within(covered: &[bool], width: u32, height: u32, reach: u32)
 
 /// Per texel of a `width` x `height` page, whether a covered texel lies
 /// within `reach` (Chebyshev): every texel a lookup on the surface reads.
+/// Any mask grows so (a bake of part of a page grows its texels by tens).
+/// The square is rows, then columns: O(reach) a texel, not O(reach^2).
 pub fn reach(covered: &[bool], width: u32, height: u32, reach: u32) -> Vec<bool> {
-    (0..width * height)
+    let (w, h, by) = (width as usize, height as usize, reach as usize);
+    let rows: Vec<bool> = (0..w * h)
         .into_par_iter()
         .map(|t| {
-            let (xs, ys, _) = window(t, width, height, reach);
-            ys.clone()
-                .any(|j| xs.clone().any(|i| covered[(j * width + i) as usize]))
+            let (x, y) = (t % w, t / w);
+            (x.saturating_sub(by)..=(x + by).min(w - 1)).any(|x| covered[y * w + x])
+        })
+        .collect();
+    (0..w * h)
+        .into_par_iter()
+        .map(|t| {
+            let (x, y) = (t % w, t / w);
+            (y.saturating_sub(by)..=(y + by).min(h - 1)).any(|y| rows[y * w + x])
         })
         .collect()
 }
