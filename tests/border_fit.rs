@@ -194,6 +194,7 @@ fn solve_free(
         aobake::lightmap::Filter::Bilinear,
         free,
         None,
+        None,
         ao,
         &mut sh,
         None,

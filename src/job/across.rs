@@ -268,7 +268,7 @@ pub fn close(
     let (ids, solved, stats, _) = solve(0..1 + SH_COUNT, false);
     let (layer_ids, layer_solved, layer_stats, _) = match layer {
         true => solve(1 + SH_COUNT..1 + SH_COUNT + vis, true),
-        false => (Vec::new(), Vec::new(), StitchStats::default(), Vec::new()),
+        false => (Vec::new(), Vec::new(), StitchStats::default(), None),
     };
     report.solve = stats;
     report.solve.converged &= !layer || layer_stats.converged;

@@ -363,6 +363,7 @@ impl Page<'_> {
             fit_cache: None,
             solve_range: self.carry.solve_range.as_ref(),
             known: None,
+            changed: None,
             noise_rays: s.noise_rays(),
             sigma_texels,
         }
@@ -374,14 +375,15 @@ impl Page<'_> {
     /// lightmap, each texel the value [`Page::finish`] gives it on a bake
     /// of the whole page, or NaN where that depends on a receiver less
     /// than [`adaptive::PageWide::halo`] texels inside the part
-    /// ([`lightmap::build`] says how NaN travels), and the solves'
-    /// components ([`lightmap::known::missing`] reads them). Bilinear
-    /// pages only.
+    /// ([`lightmap::build`] says how NaN travels), and per texel whether
+    /// the edit (`changed`: the texels whose inputs it changed) can change
+    /// it ([`lightmap::known::missing`] reads it). Bilinear pages only.
     pub fn lightmap_part(
         &self,
         part: &[u32],
         passes: &BakePasses,
         inside: &[bool],
+        changed: &[bool],
         s: &BakeSettings,
         timer: &mut StageTimer,
     ) -> Result<lightmap::Built> {
@@ -418,6 +420,7 @@ impl Page<'_> {
         let sigma = part_sigma.map(|_| &sigma[..]);
         let mut page_bake = self.page_bake(&bake, inside, sigma, s);
         page_bake.known = Some(&known);
+        page_bake.changed = Some(changed);
         lightmap::build(&page_bake, s.seams, s.border, s.filter, false, timer)
     }
 

@@ -25,13 +25,13 @@ use crate::lightmap::seams::reach as grow;
 use crate::lightmap::{Filter, dilate, known};
 use crate::stage::StageTimer;
 
-/// Texels past the halo that the part reaches beyond the changed texels,
-/// for the solve's components around them.
+/// Texels past the halo that the first part reaches beyond the changed
+/// texels, for the solve's rows around them.
 const MARGIN: u32 = 16;
 
 /// Parts tried, each grown by what the one before did not know, before
 /// the page is baked whole.
-const ATTEMPTS: u32 = 3;
+const ATTEMPTS: u32 = 4;
 
 /// The largest share of a page's receivers a part may hold: past it, the
 /// part's bake and the lightmap stage's passes over the whole page cost
@@ -85,13 +85,17 @@ pub(crate) fn rebake(
     }
     let reach = PageWide::halo(&s.adaptive) + MARGIN;
     // The texels the part must know: the changed ones, then those the
-    // check finds missing (the solve's components reach far along the
-    // charts' bands and gutters), until none is or the page is whole.
+    // check finds missing and those the solve says the values that may
+    // change read (its reach in rows, along the charts' bands, across
+    // seams and gutters), until none is missing or the page is whole.
     let mut need = changed.clone();
     let before = dilate::fill_map(w, h, &r.texel, &prev_inside);
     let mut attempt = 0;
     let (part, passes, inside, built) = loop {
         attempt += 1;
+        // The first part a margin past the halo; then what the solve
+        // said its values read, the halo past it.
+        let reach = reach - if attempt > 1 { MARGIN } else { 0 };
         let near = grow(&grow(&need, w, h, 1), w, h, reach);
         let part: Vec<u32> = (0..r.len() as u32)
             .filter(|&j| near[r.texel[j as usize] as usize])
@@ -118,9 +122,9 @@ pub(crate) fn rebake(
         for (t, (&a, &b)) in before.iter().zip(&after).enumerate() {
             changed[t] |= a != b || (b != dilate::NONE && wide[b as usize]);
         }
-        let built = page.lightmap_part(&part, &passes, &inside, s, timer)?;
-        let missing = match &built.components {
-            Some(components) => known::missing(&built.lightmap, components, &changed),
+        let built = page.lightmap_part(&part, &passes, &inside, &changed, s, timer)?;
+        let missing = match &built.may_change {
+            Some(may_change) => known::missing(&built.lightmap, may_change),
             None => (changed.iter().zip(&built.lightmap.ao))
                 .map(|(&c, a)| c && !a.is_finite())
                 .collect(),
@@ -131,11 +135,13 @@ pub(crate) fn rebake(
         }
         if attempt == ATTEMPTS {
             return Ok(Err(format!(
-                "the edit's reach leaves the part ({count} texels after {ATTEMPTS} parts)"
+                "the edit's reach leaves the part ({count} texels after {ATTEMPTS} parts, the last of {} receivers)",
+                part.len()
             )));
         }
-        for (n, (&m, &c)) in need.iter_mut().zip(missing.iter().zip(&changed)) {
-            *n |= m || c;
+        let reads = built.reads.as_deref().unwrap_or(&[]);
+        for (t, (&m, &c)) in missing.iter().zip(&changed).enumerate() {
+            need[t] |= m || c || reads.get(t).copied().unwrap_or(false);
         }
     };
     // PREV's texels, the known ones written over them.

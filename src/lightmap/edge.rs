@@ -393,6 +393,7 @@ mod tests {
                 |t| !free[t as usize],
                 weight,
                 |t, out| out[0] = baked[t as usize],
+                None,
             );
             assert!(stats.converged, "{stats:?}");
             let mut out = baked.clone();

@@ -134,6 +134,10 @@ pub struct PageBake<'a> {
     /// receiver's does; else a bake of part of the page (`--reuse`), and
     /// the texels whose value the others decide come out NaN ([`build`]).
     pub known: Option<&'a [bool]>,
+    /// In such a bake, per texel whether the edit changed its inputs (its
+    /// value before the solve, the rows in its cell), for
+    /// [`Built::may_change`].
+    pub changed: Option<&'a [bool]>,
     /// The Monte Carlo ray count whose noise the page's values carry
     /// ([`crate::job::settings::BakeSettings::noise_rays`]), which a step
     /// cell must stand out from ([`border::step_span`]); `None` for the
@@ -153,9 +157,12 @@ pub struct Built {
     pub seam_maps: Option<[Vec<u8>; 2]>,
     /// The range the solve kept the page in (with the border fit).
     pub solve_range: Option<SolveRange>,
-    /// The solves' unknowns and their components
-    /// ([`seams::Stitched::components`]), when the page was stitched.
-    pub components: Option<[(Vec<u32>, Vec<u32>); 2]>,
+    /// With [`PageBake::changed`], per texel whether the edit can change
+    /// it ([`seams::Stitched::may_change`]), when the page was stitched.
+    pub may_change: Option<Vec<bool>>,
+    /// And whether a texel that may change reads it
+    /// ([`seams::Stitched::reads`]).
+    pub reads: Option<Vec<bool>>,
 }
 
 /// Runs the post-bake stages on one page: dilate, spread, the border fit
@@ -196,7 +203,8 @@ pub fn build(
             border: None,
             seam_maps: None,
             solve_range: None,
-            components: None,
+            may_change: None,
+            reads: None,
         });
     }
     let stitch = seam_mode == SeamMode::Stitch;
@@ -337,12 +345,13 @@ pub fn build(
         filter,
         &free,
         p.solve_range,
+        p.changed,
         &mut lightmap.ao,
         &mut lightmap.sh,
         lightmap.visibility.as_deref_mut(),
     );
     let (report, solve_range) = (stitched.report, stitched.range);
-    let components = Some(stitched.components);
+    let (may_change, reads) = (stitched.may_change, stitched.reads);
     let border = (!points.is_empty() || !edge.rows.is_empty()).then(|| BorderReport {
         points: points.len(),
         rays: fit_rays,
@@ -359,7 +368,8 @@ pub fn build(
         border,
         seam_maps,
         solve_range,
-        components,
+        may_change,
+        reads,
     })
 }
 
@@ -430,6 +440,7 @@ mod tests {
             h,
             Filter::Bicubic,
             &free,
+            None,
             None,
             ao_out,
             sh_out,

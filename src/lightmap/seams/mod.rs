@@ -17,10 +17,11 @@
 //!    solves those seams' two sides together: `crate::job::across`).
 
 pub mod anchor;
-pub(crate) mod cg;
 pub mod find;
 pub mod metric;
+mod reads;
 pub mod solve;
+pub mod solver;
 
 pub use find::{CrossSeam, Seam};
 pub use metric::SeamFigures;
@@ -165,7 +166,9 @@ pub(crate) fn write_channels(
 /// bake's [`SolveRange`] of the page (`--reuse`), widened by the page's
 /// own, so that a bake of only the texels an edit reaches (whose other
 /// texels hold values inside the carried range) keeps the range a bake of
-/// the whole page keeps.
+/// the whole page keeps. `changed`: in such a bake, the texels whose
+/// inputs the edit changed (their values before the solve, the rows in
+/// their cells), for [`Stitched::may_change`].
 #[allow(clippy::too_many_arguments)]
 pub fn stitch_page(
     seams: &[Seam],
@@ -179,6 +182,7 @@ pub fn stitch_page(
     filter: Filter,
     free: &[bool],
     carried: Option<&SolveRange>,
+    changed: Option<&[bool]>,
     ao: &mut [f32],
     sh: &mut [[f32; SH_COUNT]],
     visibility: Option<&mut [[f32; VIS_COUNT]]>,
@@ -186,8 +190,11 @@ pub fn stitch_page(
     let before = metric::measure(seams, width, height, ao, sh, filter);
     let gap_before = anchor_gap(anchors, width, height, ao, filter);
     let channels = channels(visibility.is_some());
-    // The page's solve with `fixed` texels held and `baked` values.
-    let stitch = |fixed: &dyn Fn(u32) -> bool, baked: &(dyn Fn(u32, &mut [f32]) + Sync)| {
+    // The page's solve with `fixed` texels held and `baked` values, and
+    // which of its unknowns read a texel of `seeds`.
+    let stitch = |fixed: &dyn Fn(u32) -> bool,
+                  baked: &(dyn Fn(u32, &mut [f32]) + Sync),
+                  seeds: Option<&[bool]>| {
         solve::stitch(
             seams,
             anchors,
@@ -200,14 +207,42 @@ pub fn stitch_page(
             fixed,
             data_weight,
             baked,
+            seeds,
         )
     };
-    let (texels, values, solve, component) = {
+    // What an edit can change (`changed`): S1, the first solve's unknowns
+    // reading a texel within one of a changed one (a row reads its cell's
+    // four taps); W, the texels within two of S1 and the changed ones
+    // (whether they are solved again); S2, the second solve's unknowns
+    // reading a texel within one of W.
+    let grow = |mask: &[bool], by: u32| reach(mask, width, height, by);
+    let seeds = changed.map(|c| grow(c, 1));
+    let (texels, values, solve, reached) = {
         let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
-        stitch(&|t| !free[t as usize], &|t, out| {
-            write_channels(ao, sh, v, t as usize, out)
-        })
+        let baked = |t: u32, out: &mut [f32]| write_channels(ao, sh, v, t as usize, out);
+        stitch(&|t| !free[t as usize], &baked, seeds.as_deref())
     };
+    // An unknown within the solve's reach of a seed may change (its whole
+    // component under conjugate gradients: depth 0); one within twice it
+    // is read by one that may.
+    let reach = solve::Solver::for_filter(filter).reach().unwrap_or(0) as u32;
+    let mut reads = changed.map(|c| c.to_vec());
+    let mut mark = |texels: &[u32], r: &Option<solve::Reads>, may: &mut [bool]| {
+        let (Some(r), Some(reads)) = (r, &mut reads) else {
+            return;
+        };
+        for (&t, &d) in texels.iter().zip(&r.depth) {
+            may[t as usize] |= d <= reach;
+            reads[t as usize] |= d != u32::MAX;
+        }
+        r.fixed.iter().for_each(|&t| reads[t as usize] = true);
+    };
+    let within = changed.map(|changed| {
+        let mut s1 = changed.to_vec();
+        mark(&texels, &reached, &mut s1);
+        grow(&s1, 2)
+    });
+    let seeds = within.as_ref().map(|w| grow(w, 1));
     let mut visibility = visibility;
     // With the border fit, the solve keeps every channel within the range
     // the page held before it: the encoding's scale and offset cover each
@@ -289,9 +324,9 @@ pub fn stitch_page(
     let vis = visibility.as_deref_mut();
     write_solved(&texels, &values, range.as_ref(), ao, sh, vis);
     let mut solve = solve;
-    let mut components = [(texels, component), Default::default()];
+    let mut may_change = within;
     if let Some((slot, saved)) = saved {
-        let (texels, values, second, component) = {
+        let (texels, values, second, reached) = {
             let (ao, sh, v) = (&*ao, &*sh, visibility.as_deref());
             stitch(
                 &|t| slot[t as usize] == u32::MAX,
@@ -299,12 +334,15 @@ pub fn stitch_page(
                     u32::MAX => write_channels(ao, sh, v, t as usize, out),
                     k => out.copy_from_slice(&saved[k as usize * channels..][..channels]),
                 },
+                seeds.as_deref(),
             )
         };
         write_solved(&texels, &values, range.as_ref(), ao, sh, visibility);
         solve.max_iterations = solve.max_iterations.max(second.max_iterations);
         solve.converged &= second.converged;
-        components[1] = (texels, component);
+        if let Some(may) = &mut may_change {
+            mark(&texels, &reached, may);
+        }
     }
     let after = metric::measure(seams, width, height, ao, sh, filter);
     let cross_page = (!anchors.is_empty()).then(|| CrossPageFigures {
@@ -323,7 +361,8 @@ pub fn stitch_page(
     Stitched {
         report,
         range,
-        components,
+        may_change,
+        reads,
     }
 }
 
@@ -332,9 +371,12 @@ pub struct Stitched {
     pub report: SeamReport,
     /// The range the solve kept (none without the border fit's points).
     pub range: Option<SolveRange>,
-    /// The first solve's and the active set's second's unknowns (texels)
-    /// and each one's component.
-    pub components: [(Vec<u32>, Vec<u32>); 2],
+    /// With `changed`: per texel, whether the edit can change its value
+    /// (it changed, or a solve's value there reads one that did).
+    pub may_change: Option<Vec<bool>>,
+    /// With `changed`: per texel, whether a value that may change reads it
+    /// (a rebake must know it), as far as the structure known tells.
+    pub reads: Option<Vec<bool>>,
 }
 
 /// The solve's values (`channels` per texel of `texels`) into the page's

@@ -11,11 +11,16 @@
 //! (border and gutter texels; the caller may fix others, whose values
 //! then enter the constraints as constants); the normal equations (I + lambda^2 C^T C) x =
 //! x0 split into independent components (texels tied by constraints), each
-//! solved by Jacobi-preconditioned conjugate gradients, in parallel.
+//! solved in parallel by a [`Solver`]: on a bilinear page a fixed number of
+//! Jacobi-preconditioned Chebyshev steps, so that a solved texel reads only
+//! the texels within a few rows of it (a rebake of part of a page needs no
+//! more of it), elsewhere conjugate gradients to a tolerance.
 
-use super::cg::conjugate_gradients;
 use super::find::Seam;
 use super::metric::samples;
+pub use super::reads::Reads;
+pub use super::solver::Solver;
+use super::solver::{SPECTRUM_LOW, STEPS, chebyshev, conjugate_gradients};
 use crate::lightmap::filter::Filter;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -40,14 +45,18 @@ pub struct StitchStats {
     pub components: usize,
     /// Most conjugate-gradient iterations any component and channel took.
     pub max_iterations: usize,
-    /// Every component and channel reached the tolerance.
+    /// Every component and channel reached its solver's end: conjugate
+    /// gradients their tolerance, the Chebyshev steps all [`STEPS`] with
+    /// a finite residual (which on Sponza ends above 10% of the
+    /// right-hand side's on 1.6% of the unknowns, where the engine view
+    /// measured no difference: `docs/measurements/constants.md`, STEPS).
     pub converged: bool,
 }
 
 /// A solve's unknowns' texels, their values (`channels` each), the
-/// solve's stats and per unknown its component's index (the unknowns come
-/// in component order).
-pub type Solution = (Vec<u32>, Vec<f32>, StitchStats, Vec<u32>);
+/// solve's stats and, when seeds were given, how far its unknowns (in the
+/// same order) lie from them ([`System::seeded`]).
+pub type Solution = (Vec<u32>, Vec<f32>, StitchStats, Option<Reads>);
 
 /// A constraint's free part in a component's own indices.
 type LocalRow = Vec<(usize, f64)>;
@@ -56,9 +65,9 @@ type LocalRow = Vec<(usize, f64)>;
 /// negative), duplicates merged; and the fixed texels it reads, with
 /// theirs.
 #[derive(Default)]
-struct Row {
-    free: Vec<(u32, f64)>,
-    fixed: Vec<(u32, f64)>,
+pub(super) struct Row {
+    pub(super) free: Vec<(u32, f64)>,
+    pub(super) fixed: Vec<(u32, f64)>,
     /// For a one-sided constraint: the [`Anchor`] its lookup must meet.
     anchor: Option<usize>,
     /// The row's scale (its weight: the anchor's, or 1).
@@ -88,8 +97,10 @@ pub struct Anchor {
 /// `anchors` add one-sided constraints (lookup = target) of a seam (its
 /// other side on another page); seam rows, two-sided and these, are scaled
 /// by `seam_scale`. `fitted` add one-sided constraints of their own weight
-/// (the border fit's points). Every row reads through `filter`. Returns
-/// the unknowns' texels, values (`channels` each) and the solve's stats.
+/// (the border fit's points). Every row reads through `filter`, and the
+/// system is solved by [`Solver::for_filter`]. `seeds`: texels whose inputs
+/// changed ([`System::seeded`]). Returns the unknowns' texels, values
+/// (`channels` each), the solve's stats and how far they lie from a seed.
 #[allow(clippy::too_many_arguments)]
 pub fn stitch(
     seams: &[Seam],
@@ -103,6 +114,7 @@ pub fn stitch(
     fixed: impl Fn(u32) -> bool,
     data_weight: &(dyn Fn(u32) -> f64 + Sync),
     baked: impl Fn(u32, &mut [f32]) + Sync,
+    seeds: Option<&[bool]>,
 ) -> Solution {
     // Each row's taps (texel, weight), its anchor and scale, built in
     // parallel and pushed in order (the unknowns are numbered in the order
@@ -138,7 +150,8 @@ pub fn stitch(
             (tapped(a.uv, scale).collect(), Some(k), scale)
         })
         .collect();
-    let mut system = System::new(fixed);
+    let mut system = System::new(fixed).solver(Solver::for_filter(filter));
+    system.seeds = seeds;
     for (row_taps, anchor, scale) in two_sided.into_iter().chain(one_sided) {
         system.push(row_taps, anchor, scale);
     }
@@ -150,21 +163,43 @@ pub fn stitch(
 /// others numbered as unknowns in the order they first appear. Solved by
 /// [`System::solve`]: minimise Sum_t (x_t - x0_t)^2 + lambda^2 Sum_rows
 /// (row(x) - target)^2 per channel ([`SEAM_WEIGHT`] = lambda).
-pub struct System<F: Fn(u32) -> bool> {
+pub struct System<'s, F: Fn(u32) -> bool> {
     fixed: F,
+    solver: Solver,
+    /// Per texel, whether its inputs changed ([`System::seeded`]).
+    seeds: Option<&'s [bool]>,
     /// Per texel id, its unknown (`u32::MAX`: none yet); grown on demand.
     unknown_of: Vec<u32>,
     texel_of: Vec<u32>,
     rows: Vec<Row>,
 }
 
-impl<F: Fn(u32) -> bool> System<F> {
+impl<'s, F: Fn(u32) -> bool> System<'s, F> {
+    /// A system solved by conjugate gradients ([`System::solver`] sets
+    /// another).
     pub fn new(fixed: F) -> Self {
         System {
             fixed,
+            solver: Solver::Converged,
+            seeds: None,
             unknown_of: Vec::new(),
             texel_of: Vec::new(),
             rows: Vec::new(),
+        }
+    }
+
+    pub fn solver(self, solver: Solver) -> Self {
+        System { solver, ..self }
+    }
+
+    /// The solution will say how far each unknown lies from `seeds` (per
+    /// texel: its value or the rows through its cell changed), in rows
+    /// ([`Reads`]): its value reads a seed within [`Solver::reach`] (its
+    /// whole component under conjugate gradients).
+    pub fn seeded(self, seeds: &'s [bool]) -> Self {
+        System {
+            seeds: Some(seeds),
+            ..self
         }
     }
 
@@ -236,14 +271,25 @@ impl<F: Fn(u32) -> bool> System<F> {
         baked: impl Fn(u32, &mut [f32]) + Sync,
         target: impl Fn(usize) -> &'t [f32] + Sync,
     ) -> Solution {
-        let System { texel_of, rows, .. } = self;
+        let System {
+            texel_of,
+            rows,
+            solver,
+            seeds,
+            ..
+        } = self;
         let n = texel_of.len();
         if n == 0 || rows.is_empty() {
             let stats = StitchStats {
                 converged: true,
                 ..Default::default()
             };
-            return (Vec::new(), Vec::new(), stats, Vec::new());
+            return (
+                Vec::new(),
+                Vec::new(),
+                stats,
+                seeds.map(|_| Reads::default()),
+            );
         }
         // Components: unknowns tied by a row (union-find).
         let mut parent: Vec<u32> = (0..n as u32).collect();
@@ -277,6 +323,18 @@ impl<F: Fn(u32) -> bool> System<F> {
             local_of[u as usize] = c.len() as u32;
             c.push(u);
         }
+        let reached = seeds.map(|seeds| {
+            let component = (0..n as u32).map(|u| component_of[root(&mut parent, u) as usize]);
+            let component: Vec<u32> = component.collect();
+            let mut value = vec![0.0f32; channels];
+            let known: Vec<bool> = (texel_of.iter())
+                .map(|&t| {
+                    baked(t, &mut value);
+                    value[0].is_finite()
+                })
+                .collect();
+            super::reads::reached(&rows, &texel_of, &component, seeds, solver.reach(), &known)
+        });
         let mut component_rows: Vec<Vec<usize>> = vec![Vec::new(); members.len()];
         for (i, row) in rows.iter().enumerate() {
             let r = root(&mut parent, row.free[0].0) as usize;
@@ -369,12 +427,23 @@ impl<F: Fn(u32) -> bool> System<F> {
                         }
                     }
                 }
-                // A component that reads a value not known (NaN: a bake
-                // of part of a page) is not known: not solved.
-                if !b.iter().chain(&x0).all(|v| v.is_finite()) {
+                // Values not known (NaN: a bake of part of a page): under
+                // conjugate gradients (whose step lengths sum over the
+                // component) the component is not known; the Chebyshev
+                // steps carry NaN exactly as far as the values read it.
+                let finite = |v: &f64| v.is_finite();
+                let none_known = !b.iter().chain(&x0).any(finite);
+                if none_known || (solver == Solver::Converged && !b.iter().chain(&x0).all(finite)) {
                     return (component, (texels, vec![f32::NAN; m * c], 0, true));
                 }
-                let (x, most, converged) = conjugate_gradients(&apply, &diagonal, &b, &x0, c);
+                let (x, most, converged) = match solver {
+                    Solver::Converged => conjugate_gradients(&apply, &diagonal, &b, &x0, c),
+                    Solver::Steps { high } => {
+                        let (x, residual) =
+                            chebyshev(&apply, &diagonal, &b, &x0, c, (SPECTRUM_LOW, high), STEPS);
+                        (x, STEPS, residual.is_finite())
+                    }
+                };
                 let out: Vec<f32> = x.iter().map(|&v| v as f32).collect();
                 (component, (texels, out, most, converged))
             })
@@ -388,15 +457,22 @@ impl<F: Fn(u32) -> bool> System<F> {
             converged: true,
         };
         let (mut texels, mut values) = (Vec::with_capacity(n), Vec::with_capacity(n * channels));
-        let mut component = Vec::with_capacity(n);
-        for (c, (t, out, iterations, converged)) in solved {
+        for (_, (t, out, iterations, converged)) in solved {
             stats.max_iterations = stats.max_iterations.max(iterations);
             stats.converged &= converged;
-            component.extend(std::iter::repeat_n(c as u32, t.len()));
             texels.extend(t);
             values.extend(out);
         }
-        (texels, values, stats, component)
+        // Per unknown in component order, as `texels`.
+        let reached = reached.map(|Reads { depth, fixed }| Reads {
+            depth: members
+                .iter()
+                .flatten()
+                .map(|&u| depth[u as usize])
+                .collect(),
+            fixed,
+        });
+        (texels, values, stats, reached)
     }
 }
 
@@ -440,6 +516,7 @@ mod tests {
             |_| false,
             &|_| 1.0,
             |t, out| out[0] = values[t as usize],
+            None,
         );
         assert!(stats.converged && stats.unknowns > 0, "{stats:?}");
         for (t, v) in texels.iter().zip(new) {
@@ -485,6 +562,7 @@ mod tests {
             |t| t % w < 3,
             &|_| 1.0,
             |t, out| out[0] = values[t as usize],
+            None,
         );
         assert!(stats.converged && stats.constraints == 24, "{stats:?}");
         for (t, v) in texels.iter().zip(new) {
