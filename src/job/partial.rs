@@ -31,7 +31,7 @@ const MARGIN: u32 = 16;
 
 /// Parts tried, each grown by what the one before did not know, before
 /// the page is baked whole.
-const ATTEMPTS: u32 = 4;
+const ATTEMPTS: u32 = 3;
 
 /// The largest share of a page's receivers a part may hold: past it, the
 /// part's bake and the lightmap stage's passes over the whole page cost

@@ -47,9 +47,8 @@ pub struct StitchStats {
     pub max_iterations: usize,
     /// Every component and channel reached its solver's end: conjugate
     /// gradients their tolerance, the Chebyshev steps all [`STEPS`] with
-    /// a finite residual (which on Sponza ends above 10% of the
-    /// right-hand side's on 1.6% of the unknowns, where the engine view
-    /// measured no difference: `docs/measurements/constants.md`, STEPS).
+    /// a finite residual (theirs is not a tolerance:
+    /// `docs/measurements/constants.md`, STEPS).
     pub converged: bool,
 }
 

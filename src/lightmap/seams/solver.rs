@@ -13,13 +13,13 @@ use super::super::filter::Filter;
 /// The Chebyshev steps of a bilinear page's solve ([`Solver::Steps`]).
 /// Fewer leave more of the seams and the border fit's gaps open, more
 /// widen what a texel reads (`docs/measurements/constants.md`, STEPS).
-pub const STEPS: usize = 30;
+pub const STEPS: usize = 60;
 
 /// The low end of the spectrum the Chebyshev steps are tuned to (of D^-1
 /// M, whose high end is at most a row's tap count): error components
 /// above it shrink at conjugate gradients' worst-case rate, those below
 /// more slowly (`docs/measurements/constants.md`, STEPS).
-pub const SPECTRUM_LOW: f64 = 0.05;
+pub const SPECTRUM_LOW: f64 = 0.02;
 
 /// How a [`System`](super::solve::System) is solved.
 #[derive(Clone, Copy, Debug, PartialEq)]
