@@ -10,7 +10,7 @@
 //!
 //! [`Solver::reach`]: super::solve::Solver::reach
 
-use super::solve::Row;
+use super::solver::Row;
 
 /// How far a system's unknowns lie from the seeds.
 #[derive(Clone, Debug, Default)]

@@ -20,7 +20,7 @@ use super::find::Seam;
 use super::metric::samples;
 pub use super::reads::Reads;
 pub use super::solver::Solver;
-use super::solver::{SPECTRUM_LOW, STEPS, chebyshev, conjugate_gradients};
+use super::solver::{Row, SPECTRUM_LOW, STEPS, chebyshev, conjugate_gradients};
 use crate::lightmap::filter::Filter;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -59,19 +59,6 @@ pub type Solution = (Vec<u32>, Vec<f32>, StitchStats, Option<Reads>);
 
 /// A constraint's free part in a component's own indices.
 type LocalRow = Vec<(usize, f64)>;
-
-/// One constraint: unknowns and weights (side A positive, side B
-/// negative), duplicates merged; and the fixed texels it reads, with
-/// theirs.
-#[derive(Default)]
-pub(super) struct Row {
-    pub(super) free: Vec<(u32, f64)>,
-    pub(super) fixed: Vec<(u32, f64)>,
-    /// For a one-sided constraint: the [`Anchor`] its lookup must meet.
-    anchor: Option<usize>,
-    /// The row's scale (its weight: the anchor's, or 1).
-    scale: f64,
-}
 
 /// A one-sided constraint: the page's bilinear lookup at `uv` should
 /// equal `target` (one value per channel), for a seam whose other side is

@@ -55,6 +55,19 @@ impl Solver {
     }
 }
 
+/// One constraint: unknowns and weights (side A positive, side B
+/// negative), duplicates merged; and the fixed texels it reads, with
+/// theirs.
+#[derive(Default)]
+pub(super) struct Row {
+    pub(super) free: Vec<(u32, f64)>,
+    pub(super) fixed: Vec<(u32, f64)>,
+    /// For a one-sided constraint: the [`Anchor`](super::Anchor) its lookup must meet.
+    pub(super) anchor: Option<usize>,
+    /// The row's scale (its weight: the anchor's, or 1).
+    pub(super) scale: f64,
+}
+
 /// Relative residual at which conjugate gradients stop.
 const TOLERANCE: f64 = 1e-5;
 
