@@ -33,9 +33,10 @@ const MARGIN: u32 = 16;
 /// the page is baked whole.
 const ATTEMPTS: u32 = 3;
 
-/// The largest share of a page's receivers a part may hold: past it, the
-/// part's bake and the lightmap stage's passes over the whole page cost
-/// about what baking the page whole costs.
+/// The largest share of a page's receivers the parts may hold together
+/// (each is baked from scratch): past it, the parts' bakes and the
+/// lightmap stage's passes over the whole page cost about what baking the
+/// page whole costs.
 const MOST_OF_PAGE: f64 = 0.4;
 
 /// A fit point next to a receiver lies within this many of its
@@ -91,6 +92,7 @@ pub(crate) fn rebake(
     let mut need = changed.clone();
     let before = dilate::fill_map(w, h, &r.texel, &prev_inside);
     let mut attempt = 0;
+    let mut spent = 0;
     let (part, passes, inside, built) = loop {
         attempt += 1;
         // The first part a margin past the halo; then what the solve
@@ -100,13 +102,14 @@ pub(crate) fn rebake(
         let part: Vec<u32> = (0..r.len() as u32)
             .filter(|&j| near[r.texel[j as usize] as usize])
             .collect();
-        if part.len() as f64 > MOST_OF_PAGE * r.len() as f64 {
+        if (spent + part.len()) as f64 > MOST_OF_PAGE * r.len() as f64 {
             return Ok(Err(format!(
-                "the edit's reach covers {} of the page's {} receivers",
+                "the edit's reach asks for a part of {} of the page's {} receivers, after {spent} baked",
                 part.len(),
                 r.len()
             )));
         }
+        spent += part.len();
         let passes = page.bake_part(&part, s, run, timer)?;
         // The page's inside marks: PREV's, the part's own over them.
         let mut inside = prev_inside.clone();
