@@ -222,17 +222,15 @@ pub fn stitch_page(
         let baked = |t: u32, out: &mut [f32]| write_channels(ao, sh, v, t as usize, out);
         stitch(&|t| !free[t as usize], &baked, seeds.as_deref())
     };
-    // An unknown within the solve's reach of a seed may change (its whole
-    // component under conjugate gradients: depth 0); one within twice it
-    // is read by one that may.
-    let reach = solve::Solver::for_filter(filter).reach().unwrap_or(0) as u32;
+    // An unknown within the solve's reach of a seed may change; one
+    // within twice it is read by one that may.
     let mut reads = changed.map(|c| c.to_vec());
     let mut mark = |texels: &[u32], r: &Option<solve::Reads>, may: &mut [bool]| {
         let (Some(r), Some(reads)) = (r, &mut reads) else {
             return;
         };
         for (&t, &d) in texels.iter().zip(&r.depth) {
-            may[t as usize] |= d <= reach;
+            may[t as usize] |= d <= r.reach;
             reads[t as usize] |= d != u32::MAX;
         }
         r.fixed.iter().for_each(|&t| reads[t as usize] = true);

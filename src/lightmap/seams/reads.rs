@@ -22,6 +22,10 @@ pub struct Reads {
     /// The fixed texels of the rows within twice the reach of a seed: what
     /// the unknowns within the reach read besides the unknowns.
     pub fixed: Vec<u32>,
+    /// The rows a solved value reads beyond its own: an unknown within it
+    /// of a seed may change (0 under conjugate gradients, whose values read
+    /// whole components, every unknown of a touched one at depth 0).
+    pub reach: u32,
 }
 
 /// How far each unknown lies from the seeds: breadth first over the rows,
@@ -74,7 +78,11 @@ pub(super) fn reached(
             crossed[r] = touched[component[row.free[0].0 as usize] as usize];
         }
         let fixed = fixed_of(&crossed);
-        return Reads { depth, fixed };
+        return Reads {
+            depth,
+            fixed,
+            reach: 0,
+        };
     };
     // Per unknown, its rows (compressed: `first[u]..first[u + 1]`).
     let mut first = vec![0u32; n + 1];
@@ -120,5 +128,9 @@ pub(super) fn reached(
         frontier = next;
     }
     let fixed = fixed_of(&crossed);
-    Reads { depth, fixed }
+    Reads {
+        depth,
+        fixed,
+        reach: reach as u32,
+    }
 }

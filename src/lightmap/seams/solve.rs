@@ -43,11 +43,12 @@ pub struct StitchStats {
     pub unknowns: usize,
     pub constraints: usize,
     pub components: usize,
-    /// Most conjugate-gradient iterations any component and channel took.
+    /// Most iterations any component and channel took (conjugate
+    /// gradients'; the Chebyshev steps: [`STEPS`]).
     pub max_iterations: usize,
     /// Every component and channel reached its solver's end: conjugate
     /// gradients their tolerance, the Chebyshev steps all [`STEPS`] with
-    /// a finite residual (theirs is not a tolerance:
+    /// finite values (they stop at no tolerance:
     /// `docs/measurements/constants.md`, STEPS).
     pub converged: bool,
 }
@@ -136,8 +137,11 @@ pub fn stitch(
             (tapped(a.uv, scale).collect(), Some(k), scale)
         })
         .collect();
-    let mut system = System::new(fixed).solver(Solver::for_filter(filter));
-    system.seeds = seeds;
+    let system = System::new(fixed).solver(Solver::for_filter(filter));
+    let mut system = match seeds {
+        Some(seeds) => system.seeded(seeds),
+        None => system,
+    };
     for (row_taps, anchor, scale) in two_sided.into_iter().chain(one_sided) {
         system.push(row_taps, anchor, scale);
     }
@@ -174,6 +178,7 @@ impl<'s, F: Fn(u32) -> bool> System<'s, F> {
         }
     }
 
+    /// The same system solved by `solver`.
     pub fn solver(self, solver: Solver) -> Self {
         System { solver, ..self }
     }
@@ -425,9 +430,10 @@ impl<'s, F: Fn(u32) -> bool> System<'s, F> {
                 let (x, most, converged) = match solver {
                     Solver::Converged => conjugate_gradients(&apply, &diagonal, &b, &x0, c),
                     Solver::Steps { high } => {
-                        let (x, residual) =
+                        let x =
                             chebyshev(&apply, &diagonal, &b, &x0, c, (SPECTRUM_LOW, high), STEPS);
-                        (x, STEPS, residual.is_finite())
+                        let finite = x.iter().all(|v| v.is_finite());
+                        (x, STEPS, finite)
                     }
                 };
                 let out: Vec<f32> = x.iter().map(|&v| v as f32).collect();
@@ -450,14 +456,21 @@ impl<'s, F: Fn(u32) -> bool> System<'s, F> {
             values.extend(out);
         }
         // Per unknown in component order, as `texels`.
-        let reached = reached.map(|Reads { depth, fixed }| Reads {
-            depth: members
-                .iter()
-                .flatten()
-                .map(|&u| depth[u as usize])
-                .collect(),
-            fixed,
-        });
+        let reached = reached.map(
+            |Reads {
+                 depth,
+                 fixed,
+                 reach,
+             }| Reads {
+                depth: members
+                    .iter()
+                    .flatten()
+                    .map(|&u| depth[u as usize])
+                    .collect(),
+                fixed,
+                reach,
+            },
+        );
         (texels, values, stats, reached)
     }
 }
