@@ -464,3 +464,94 @@ fn on_layered_page(
     let mut page = level.page(0, &sc, &mut timer).expect("page");
     f(&mut page, &s, &mut timer);
 }
+
+#[test]
+fn two_rounds_with_no_receiver_set_bake_as_one_round() {
+    // The flight helmet's smooth normals tilt from its faces, so filtered
+    // receivers have pre-pass rays below their plane to take out once: a
+    // bake whose first round stops every receiver at a fit point's count
+    // and whose second continues them all must give the one round's
+    // values bit for bit.
+    let sc = bundled_scene("flight_helmet.glb");
+    let mut s = adaptive(128, 0, None);
+    s.fill_inside = true;
+    let mut timer = aobake::stage::StageTimer::new();
+    let level = aobake::job::Level::new(&sc, &s, &aobake::RunOptions::QUIET, &mut timer).unwrap();
+    let page = level.page(0, &sc, &mut timer).unwrap();
+    let p = aobake::bake::BakeParams {
+        max_distance: level.max_distance,
+        seed: 9,
+    };
+    let run = |sets: Option<&aobake::bake::adaptive::FitSets>| {
+        aobake::bake::adaptive::bake(
+            &page.receivers,
+            &level.tracer,
+            true,
+            true,
+            &s.adaptive,
+            aobake::bake::adaptive::PageWide::default(),
+            sets,
+            &p,
+            &mut aobake::stage::StageTimer::new(),
+            &|_| {},
+        )
+    };
+    let (one, one_stats) = run(None);
+    let none = |ao: &[f32], _: &[bool]| vec![false; ao.len()];
+    let (two, two_stats) = run(Some(&none));
+    let cap = aobake::bake::adaptive::fit_set_rays(&s.adaptive);
+    let continued = one_stats.rays.iter().filter(|&&n| n > cap).count();
+    assert!(
+        continued > 100,
+        "{continued} receivers past the first round"
+    );
+    assert_eq!(one_stats.rays, two_stats.rays);
+    assert_eq!(one.ao, two.ao);
+    assert_eq!(one.sh, two.sh);
+    assert_eq!(one.visibility.unwrap().v, two.visibility.unwrap().v);
+    // Every receiver set: each stops at the first round's count.
+    let all = |ao: &[f32], _: &[bool]| vec![true; ao.len()];
+    let (_, capped) = run(Some(&all));
+    for (a, b) in capped.rays.iter().zip(&one_stats.rays) {
+        assert_eq!(*a, (*b).min(cap));
+    }
+}
+
+#[test]
+fn receivers_the_fit_sets_stop_at_a_fit_points_rays_and_the_rest_keep_theirs() {
+    // A box on a floor: its contact lines are step cells the border fit
+    // sets. The default bake against the same bake with the fit off (one
+    // round, nothing set), receiver by receiver: the same allocation, the
+    // set receivers stopped at a fit point's count.
+    let mut parts = vec![quad(
+        [0.3, 0.3, 0.0],
+        [0.3, 0.0, 0.0],
+        [0.0, 0.3, 0.0],
+        true,
+    )];
+    parts.extend(open_box([0.2, 0.2, 0.0], [0.3, 0.4, 0.1]));
+    let sc = scene(&glb(&[merge(&parts)], plain_nodes(1)));
+    let mut s = settings(256, DEFAULT_RAYS, Some(0.3));
+    s.method = Method::Adaptive;
+    let fit = bake_raw(&sc, s.clone());
+    s.border = aobake::lightmap::border::BorderMode::Off;
+    let off = bake_raw(&sc, s.clone());
+    let cap = aobake::bake::adaptive::fit_set_rays(&s.adaptive);
+    let (a, b) = (
+        &fit.adaptive_stats.as_ref().unwrap().rays,
+        &off.adaptive_stats.as_ref().unwrap().rays,
+    );
+    assert_eq!(a.len(), b.len());
+    let mut set = 0;
+    for (k, (&a, &b)) in a.iter().zip(b).enumerate() {
+        assert!(
+            a == b || (a == cap && b > cap),
+            "receiver {k}: {a} against {b}"
+        );
+        set += (a < b) as usize;
+    }
+    let past = a.iter().filter(|&&n| n > cap).count();
+    eprintln!("{set} receivers set, {past} past the cap, of {}", a.len());
+    assert!(set > 50, "{set}");
+    assert!(past > 50, "{past}");
+}

@@ -32,7 +32,7 @@ pub fn bake(
         tracer,
         &mut out,
         CHUNK,
-        |r, _, batch| emit_receiver(receivers, r, rays, p, batch),
+        |r, _, batch| emit_receiver(receivers, r, 0, rays, p, batch),
         |r, out, directions, occluded| {
             *out = integrate_receiver(receivers, r, directions, occluded);
         },
@@ -47,18 +47,20 @@ pub fn bake(
     }
 }
 
-/// Receiver `r`'s `rays` rays, in its sequence's order: a direction at or
-/// below its geometric plane is blocked (it enters the surface itself;
-/// shading normals send ~8% of Sponza's cosine-weighted rays there).
+/// Receiver `r`'s `rays` rays from point `first` of its sequence on, in
+/// its order: a direction at or below its geometric plane is blocked (it
+/// enters the surface itself; shading normals send ~8% of Sponza's
+/// cosine-weighted rays there).
 pub fn emit_receiver(
     receivers: &Receivers,
     r: usize,
+    first: u32,
     rays: u32,
     p: &BakeParams,
     batch: &mut RayBatch,
 ) {
     let sequence = ReceiverRays::new(receivers, r, p.seed);
-    for i in 0..rays {
+    for i in first..first + rays {
         let dir = sequence.direction(i);
         if dir.dot(sequence.geo_normal) > 0.0 {
             batch.push(sequence.origin, dir, p.max_distance);

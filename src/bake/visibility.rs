@@ -53,12 +53,20 @@ fn tilt(n: Vec3, geo: Vec3) -> f32 {
 }
 
 /// Receiver `r`'s `rays` stratified uniform rays around its shading
-/// normal, those at or below its geometric plane left out (they add
-/// nothing: [`share`] counts the solid angle above).
-fn emit_receiver(receivers: &Receivers, r: usize, rays: u32, p: &BakeParams, batch: &mut RayBatch) {
+/// normal, from point `first` of its sequence on, those at or below its
+/// geometric plane left out (they add nothing: [`share`] counts the solid
+/// angle above).
+fn emit_receiver(
+    receivers: &Receivers,
+    r: usize,
+    first: u32,
+    rays: u32,
+    p: &BakeParams,
+    batch: &mut RayBatch,
+) {
     let geo = receivers.geo_normal[r];
     let sequence = ReceiverRays::with_stream(receivers, r, p.seed, VISIBILITY_STREAM);
-    for i in 0..rays {
+    for i in first..first + rays {
         let dir = sequence
             .frame
             .to_world(uniform_hemisphere(sequence.point(i)))
@@ -116,12 +124,26 @@ pub fn shares(
     rays: impl Fn(usize) -> u32 + Sync,
     p: &BakeParams,
 ) -> Vec<[f32; VIS_COUNT]> {
+    shares_from(receivers, tracer, |r| (0, rays(r)), p)
+}
+
+/// [`shares`] from later points of the receivers' sequences: receiver r
+/// with the rays `span(r)` = (first point, count).
+pub fn shares_from(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    span: impl Fn(usize) -> (u32, u32) + Sync,
+    p: &BakeParams,
+) -> Vec<[f32; VIS_COUNT]> {
     let mut out = vec![[0.0f32; VIS_COUNT]; receivers.len()];
     for_each_receiver(
         tracer,
         &mut out,
         CHUNK,
-        |r, _, batch| emit_receiver(receivers, r, rays(r), p, batch),
+        |r, _, batch| {
+            let (first, rays) = span(r);
+            emit_receiver(receivers, r, first, rays, p, batch)
+        },
         |r, out, directions, occluded| *out = share(receivers, r, directions, occluded),
         &|_| {},
     );

@@ -237,6 +237,15 @@ impl Page<'_> {
                 (b, Some(stats), None)
             }
             Method::Adaptive => {
+                // The receivers the border fit will set, found as the
+                // lightmap stage finds its fitted texels, at the first
+                // round's noise.
+                let (reach, noise) = (s.filter.reach(), s.first_round_noise_rays());
+                let sets = |ao: &[f32], inside: &[bool]| {
+                    lightmap::border::fit_sets(receivers, ao, inside, reach, s.border, noise)
+                };
+                let sets: Option<&adaptive::FitSets> =
+                    (s.border != lightmap::border::BorderMode::Off).then_some(&sets);
                 let (b, stats) = adaptive::bake(
                     receivers,
                     tracer,
@@ -244,6 +253,7 @@ impl Page<'_> {
                     layer,
                     &s.adaptive,
                     page,
+                    sets,
                     &params,
                     timer,
                     &progress,

@@ -233,26 +233,23 @@ pub fn build(
     // The texels fitted to traced surface points: the border band (every
     // texel but the interior ones, for the filter's reach) and, with
     // `--border fit`, the step cells inside charts.
-    let mut fit_at = seams::band_within(&lightmap.covered, w, h, filter.reach());
-    let mut step_texels = 0;
-    if border_mode == BorderMode::Fit {
-        let span = border::step_span(p.noise_rays);
-        let steps = border::step_texels(&lightmap.ao, &lightmap.covered, w, h, span);
-        for (f, s) in fit_at.iter_mut().zip(steps) {
-            step_texels += (s && !*f) as usize;
-            *f |= s;
-        }
-    }
+    let at = border::fit_at(
+        &lightmap.ao,
+        &lightmap.covered,
+        w,
+        h,
+        filter.reach(),
+        border_mode,
+        p.noise_rays,
+    );
+    let (fit_at, step_texels) = (at.free, at.step_texels);
     // The texels the solve moves: bilinear, those fitted; bicubic, every
     // texel a surface lookup reads (its coefficients are not samples).
     let free = match filter {
         Filter::Bilinear => fit_at.clone(),
         Filter::Bicubic => seams::reach(&lightmap.covered, w, h, filter.reach()),
     };
-    let fitted = (border_mode != BorderMode::Off).then(|| {
-        let span = border::flat_span(p.noise_rays);
-        border::fitted_taps(&lightmap.ao, &lightmap.covered, &fit_at, w, h, span)
-    });
+    let fitted = (border_mode != BorderMode::Off).then_some(at.fitted);
     // Part of a page: the structure is decided; texels next to one not
     // known are not known (their cells' structure read a NaN).
     let known = p.known.map(|_| known::unknown_cells_to_nan(&mut lightmap));

@@ -1,8 +1,10 @@
-//! The adaptive pass: each receiver's sequence continued from `pre_rays`
-//! to its ray count, added to the pre-pass's sums.
+//! The adaptive pass: each receiver's sequence continued from where its
+//! sums stop (the pre-pass's `pre_rays`, or an earlier round's count) to
+//! its ray count, added to its sums.
 //!
-//! In: [`Receivers`], a [`Tracer`], the pre-pass's [`RaySums`], each
-//! receiver's ray count and whether it is filtered, [`BakeParams`]. Out:
+//! In: [`Receivers`], a [`Tracer`], the sums so far ([`RaySums`]), each
+//! receiver's rays so far and its ray count, whether it is filtered,
+//! [`BakeParams`]. Out:
 //! the sums over all of each receiver's rays; a filtered receiver's leave
 //! out its rays below the geometric plane, which are counted only
 //! ([`super::sums::below_compensated`]).
@@ -13,7 +15,24 @@ use crate::bake::{BakeParams, ReceiverRays};
 use crate::sh;
 use crate::trace::{Tracer, for_each_receiver};
 
-/// Traces the rays from `pre_rays` to `rays[r]` of every receiver r into
+/// Where a round of the adaptive pass starts: every receiver at the end
+/// of the pre-pass's `pre_rays`, or each at its count of an earlier round.
+#[derive(Clone, Copy, Debug)]
+pub enum Start<'a> {
+    PrePass(u32),
+    Earlier(&'a [u32]),
+}
+
+impl Start<'_> {
+    fn of(&self, r: usize) -> u32 {
+        match self {
+            Start::PrePass(n) => *n,
+            Start::Earlier(counts) => counts[r],
+        }
+    }
+}
+
+/// Traces the rays from `from` to `rays[r]` of every receiver r into
 /// `sums`; `filtered(r)`: its sums leave out the rays below the plane.
 /// `progress` is told the receivers done.
 #[allow(clippy::too_many_arguments)]
@@ -21,7 +40,7 @@ pub fn adaptive_pass(
     receivers: &Receivers,
     tracer: &Tracer,
     sums: &mut [RaySums],
-    pre_rays: u32,
+    from: Start,
     rays: &[u32],
     filtered: impl Fn(usize) -> bool + Sync,
     p: &BakeParams,
@@ -34,7 +53,7 @@ pub fn adaptive_pass(
         |r, _, batch| {
             let ray = ReceiverRays::new(receivers, r, p.seed);
             let above_only = filtered(r);
-            for i in pre_rays..rays[r] {
+            for i in from.of(r)..rays[r] {
                 let d = ray.direction(i);
                 // Below the surface: occluded without tracing
                 // ([`Tracer::receiver_visible`]'s test; a filtered
@@ -50,8 +69,8 @@ pub fn adaptive_pass(
             let geo_normal = receivers.geo_normal[r];
             let above_only = filtered(r);
             // (`below` counts the pre-pass's rays below so far: none,
-            // nothing to take out.)
-            if above_only && s.below > 0 {
+            // nothing to take out. A later round finds them taken out.)
+            if let (true, Start::PrePass(pre_rays)) = (above_only && s.below > 0, from) {
                 // The pre-pass summed its rays below into both sums.
                 let ray = ReceiverRays::new(receivers, r, p.seed);
                 for i in 0..pre_rays {
@@ -65,7 +84,7 @@ pub fn adaptive_pass(
             // A filtered receiver's rays below were not cast: counted only.
             let cast = directions.len() as u32;
             if above_only {
-                s.below += rays[r].saturating_sub(pre_rays) - cast;
+                s.below += rays[r].saturating_sub(from.of(r)) - cast;
             }
             for (&d, &hit) in directions.iter().zip(occluded) {
                 if !above_only && d.dot(geo_normal) <= 0.0 {

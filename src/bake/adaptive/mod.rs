@@ -19,7 +19,9 @@
 //! 3. `allocation`: ray counts in proportion to sd / sqrt(N_eff), scaled
 //!    so the predicted error is `quality`-ray Monte Carlo's, powers of two
 //!    (whole Sobol blocks keep the stratification).
-//! 4. `adaptive_pass`: each receiver's sequence continued to its count.
+//! 4. `adaptive_pass`: each receiver's sequence continued to its count;
+//!    with [`FitSets`] in two rounds, the receivers the border fit will
+//!    set stopping at [`fit_set_rays`].
 //! 5. `filter`: the integrated AO and occluded SH share averaged over
 //!    the atlas neighbours with Gaussian weights, rows then columns,
 //!    through the leak rule and within z_min; then the exact parts added
@@ -57,6 +59,7 @@ use crate::trace::Tracer;
 use filter::FilterSupport;
 use grid::TexelGrid;
 use rayon::prelude::*;
+use sums::RaySums;
 
 /// What a bake takes from the whole page, or from an earlier bake, rather
 /// than from its own receivers. A bake of part of a page (`--reuse`: only
@@ -76,10 +79,14 @@ impl PageWide {
     /// How far (Chebyshev, texels) a receiver's value reads other
     /// receivers' pre-pass: the bounds spread z_min and the visibility
     /// over the neighbourhood (`max_reach`), N_eff over that (`max_reach`
-    /// again), the filter averages over its support (`max_reach`), and a
-    /// margin of 2 texels.
+    /// again), the filter averages over its support (`max_reach`); with
+    /// [`FitSets`] a receiver's count reads whether the fit sets it, from
+    /// the first round's filtered values within 3 texels (its cells' taps
+    /// and the gutter texels they show), which read the same 3 reaches,
+    /// so the filter's own reach once more and 3 texels; and a margin of 2
+    /// texels.
     pub fn halo(o: &AdaptiveOptions) -> u32 {
-        3 * o.max_reach + 2
+        4 * o.max_reach + 5
     }
 }
 
@@ -147,6 +154,9 @@ impl AdaptiveStats {
 /// `page`: what to take from the whole page or an earlier bake instead
 /// of finding it from `receivers` ([`PageWide`]); the scale used is in
 /// [`AdaptiveStats::scale`].
+/// `fit_sets`: which receivers the border fit will set, from their
+/// filtered AO (and which lie inside geometry); those get at most
+/// [`fit_set_rays`] rays ([`FitSets`]).
 /// Laps: `pre-pass`, `bounds`, `adaptive pass`, `filter`, and with the
 /// layer `visibility pass`, `visibility filter`.
 #[allow(clippy::too_many_arguments)]
@@ -157,6 +167,7 @@ pub fn bake(
     visibility: bool,
     o: &AdaptiveOptions,
     page: PageWide,
+    fit_sets: Option<&FitSets>,
     p: &BakeParams,
     timer: &mut StageTimer,
     progress: &(dyn Fn(u64) + Sync),
@@ -184,24 +195,6 @@ pub fn bake(
     // Filtered receivers' sums leave out the rays below the geometric
     // plane (counted only; see [`sums::below_compensated`]).
     let filtered = |r: usize| sigma_texels[r] > 0.0;
-    adaptive_pass::adaptive_pass(
-        receivers, tracer, &mut sums, o.pre_rays, &rays, filtered, p, progress,
-    );
-    timer.lap("adaptive pass");
-
-    // Equal weight per receiver: weighting by ray count (inverse
-    // variance) biases dark, because the allocation sends more rays to
-    // occluded receivers (Cornell 512, adaptive:64: AO bias -0.0021 with
-    // it).
-    let values: Vec<[f32; 10]> = (0..n)
-        .into_par_iter()
-        .with_min_len(1024)
-        .map(|r| {
-            let (normal, geo) = (receivers.normal[r], receivers.geo_normal[r]);
-            sums::below_compensated(&sums[r], rays[r], normal, geo, filtered(r))
-        })
-        .collect();
-    drop(sums);
     let support = FilterSupport {
         receivers,
         grid: &grid,
@@ -209,8 +202,54 @@ pub fn bake(
         sigma_texels: &sigma_texels,
         z_min: &z_min,
     };
-    let (mut ao, mut sh): (Vec<f32>, Vec<[f32; SH_COUNT]>) = support.filter(values);
-    sums::finish(&receivers.normal, &receivers.geo_normal, &mut ao, &mut sh);
+    // Equal weight per receiver: weighting by ray count (inverse
+    // variance) biases dark, because the allocation sends more rays to
+    // occluded receivers (Cornell 512, adaptive:64: AO bias -0.0021 with
+    // it).
+    let filter = |sums: &[RaySums], rays: &[u32]| {
+        let values: Vec<[f32; 10]> = (0..n)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|r| {
+                let (normal, geo) = (receivers.normal[r], receivers.geo_normal[r]);
+                sums::below_compensated(&sums[r], rays[r], normal, geo, filtered(r))
+            })
+            .collect();
+        let (mut ao, mut sh): (Vec<f32>, Vec<[f32; SH_COUNT]>) = support.filter(values);
+        sums::finish(&receivers.normal, &receivers.geo_normal, &mut ao, &mut sh);
+        (ao, sh)
+    };
+    let start = adaptive_pass::Start::PrePass(o.pre_rays);
+    let rays = match fit_sets {
+        None => {
+            adaptive_pass::adaptive_pass(
+                receivers, tracer, &mut sums, start, &rays, filtered, p, progress,
+            );
+            rays
+        }
+        // Receivers the border fit sets: at most FIT_SET_RAYS, found
+        // from the values at that count; the others go on to theirs.
+        Some(sets) => {
+            let first: Vec<u32> = rays.iter().map(|&n| n.min(fit_set_rays(o))).collect();
+            let quiet = |_| {};
+            adaptive_pass::adaptive_pass(
+                receivers, tracer, &mut sums, start, &first, filtered, p, &quiet,
+            );
+            let (ao, _) = filter(&sums, &first);
+            let set = sets(&ao, &inside);
+            let rays: Vec<u32> = (0..n)
+                .map(|r| if set[r] { first[r] } else { rays[r] })
+                .collect();
+            let start = adaptive_pass::Start::Earlier(&first);
+            adaptive_pass::adaptive_pass(
+                receivers, tracer, &mut sums, start, &rays, filtered, p, progress,
+            );
+            rays
+        }
+    };
+    timer.lap("adaptive pass");
+    let (ao, sh) = filter(&sums, &rays);
+    drop(sums);
     timer.lap("filter");
 
     let layer = visibility.then(|| {
@@ -243,6 +282,35 @@ pub fn bake(
     };
     (bake, stats)
 }
+
+/// Which receivers the border fit will set (`crate::lightmap::border`),
+/// from every receiver's filtered AO and whether it lies inside geometry.
+///
+/// A texel in a fitted cell takes its value mostly from the fit's traced
+/// points around it (about sixteen rows against its own data term), so
+/// its own rays past the fit's count buy little a lookup shows: the
+/// adaptive pass gives such receivers at most [`fit_set_rays`], and the
+/// rest of their allocation is not cast. Which texels are fitted depends
+/// on the baked values, so the pass runs in two rounds: every receiver to
+/// at most that count, the values filtered and the fitted ones found,
+/// then the others on to their counts. A round continues each receiver's
+/// own sequence, so a receiver not set ends with the rays and sums a
+/// single round gives it.
+pub type FitSets<'a> = dyn Fn(&[f32], &[bool]) -> Vec<bool> + Sync + 'a;
+
+/// The most rays a receiver the border fit sets gets ([`FitSets`]), never
+/// fewer than the pre-pass's: the fit's sixteen or so rows around it
+/// outweigh its own value. Sponza 1024, with the receivers found from
+/// their first round's values (edge receivers kept; against the
+/// allocation's counts, engine view all / border): at most 32 0.998x /
+/// 1.002x for 0.84x of the texels' rays; 16 cost the border 1.02x
+/// (`docs/measurements/border-fit-cost.md`).
+pub fn fit_set_rays(o: &AdaptiveOptions) -> u32 {
+    FIT_SET_RAYS.max(o.pre_rays)
+}
+
+/// [`fit_set_rays`] before the pre-pass's floor.
+pub const FIT_SET_RAYS: u32 = 32;
 
 /// Uniform visibility rays for a receiver the allocation gave `rays`
 /// (cosine-weighted) rays: half as many, never fewer than the pre-pass's

@@ -23,7 +23,10 @@
 //! clipped to its chart. Here the integral is a quadrature over a jittered
 //! grid of [`GRID`] x [`GRID`] points per texel of UV area (equal
 //! weights), restricted to the cells where something can move, with f
-//! traced at each point by [`FIT_RAYS`]-ray Monte Carlo.
+//! traced at each point by [`FIT_RAYS`]-ray Monte Carlo, the points of one
+//! texel's area taking successive runs of one scrambled Sobol sequence
+//! (interleaved sampling), so that where they see much the same
+//! hemisphere their errors cancel in the fit's average.
 //!
 //! Inside a chart the same holds wherever the signal steps within a cell
 //! (a strap lying on the helmet, a column's foot on the floor): the texel
@@ -53,22 +56,27 @@
 //! [`interior`]: super::seams::interior
 //! [`surface_triangles`]: crate::atlas::rasterize::surface_triangles
 
-use super::filter::bilinear_taps as taps;
+mod points;
+
+pub use points::{FitPoint, GRID, SLIVER_SUB, points};
+
 use super::seams::Anchor;
 use crate::atlas::Receivers;
-use crate::atlas::rasterize::{SurfaceTri, closest_point_barycentric, inside};
+use crate::atlas::rasterize::SurfaceTri;
 use crate::bake::{BakeParams, mc, validity, visibility};
-use crate::bits::{mix64, unit};
 use crate::sh::{SH_COUNT, VIS_COUNT};
-use crate::trace::Tracer;
-use glam::Vec2;
+use crate::trace::{Tracer, for_each_receiver};
+use points::cell_taps;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-/// Quadrature points per texel edge: GRID^2 points per texel of UV area.
-pub const GRID: u32 = 2;
-
-/// Rays of each fitted point's target.
+/// Rays of each fitted point's target. The points of a texel's block
+/// share one sequence ([`FitPoint::block`]), so a texel's four points hold
+/// a stratified set of four times as many: on Sponza that takes back about
+/// half of what halving the rays costs, but on the flight helmet 32 rays a
+/// point (16 for the visibility layer) still cost its relight error 1.07x
+/// / 1.11x (interior / border), over the 1.05x a bake may lose
+/// (`docs/measurements/border-fit-cost.md`).
 pub const FIT_RAYS: u32 = 64;
 
 /// Uniform rays of each fitted point's visibility layer: as the adaptive
@@ -196,6 +204,92 @@ pub fn step_texels(ao: &[f32], covered: &[bool], width: u32, height: u32, span: 
     out
 }
 
+/// Where the fit works on a page ([`fit_at`]).
+#[derive(Debug)]
+pub struct FitAt {
+    /// The texels fitted: the border band and, with [`BorderMode::Fit`],
+    /// the [`step_texels`].
+    pub free: Vec<bool>,
+    /// The free texels whose cells hold points ([`fitted_taps`]; none
+    /// with [`BorderMode::Off`]).
+    pub fitted: Vec<bool>,
+    /// Step texels outside the band.
+    pub step_texels: usize,
+}
+
+/// Where the fit works on a `width` x `height` page whose texels hold
+/// `ao` (`covered`: a receiver's texel): the border band for a lookup
+/// reaching `reach` texels (`seams::band_within`), the step cells
+/// at [`step_span`] and the fitted taps at [`flat_span`] of `noise_rays`.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_at(
+    ao: &[f32],
+    covered: &[bool],
+    width: u32,
+    height: u32,
+    reach: u32,
+    mode: BorderMode,
+    noise_rays: Option<u32>,
+) -> FitAt {
+    let mut free = super::seams::band_within(covered, width, height, reach);
+    let mut steps = 0;
+    if mode == BorderMode::Fit {
+        let step = step_texels(ao, covered, width, height, step_span(noise_rays));
+        for (f, s) in free.iter_mut().zip(step) {
+            steps += (s && !*f) as usize;
+            *f |= s;
+        }
+    }
+    let fitted = match mode {
+        BorderMode::Off => vec![false; free.len()],
+        _ => fitted_taps(ao, covered, &free, width, height, flat_span(noise_rays)),
+    };
+    FitAt {
+        free,
+        fitted,
+        step_texels: steps,
+    }
+}
+
+/// Per receiver, whether the fit sets its texel ([`FitAt::fitted`]) when
+/// the page's receivers hold `ao` (`inside`: inside geometry, shown by
+/// their neighbours' values as the lightmap shows them, [`super::dilate`]):
+/// what the adaptive bake asks before it spends a receiver's last rays
+/// ([`crate::bake::adaptive::FitSets`]). The lightmap stage decides the
+/// fit again from the final values.
+pub fn fit_sets(
+    receivers: &Receivers,
+    ao: &[f32],
+    inside: &[bool],
+    reach: u32,
+    mode: BorderMode,
+    noise_rays: Option<u32>,
+) -> Vec<bool> {
+    let (w, h) = (receivers.width, receivers.height);
+    let fill = super::dilate::fill_map(w, h, &receivers.texel, inside);
+    let shown: Vec<f32> = fill
+        .par_iter()
+        .map(|&r| {
+            if r == super::dilate::NONE {
+                1.0
+            } else {
+                ao[r as usize]
+            }
+        })
+        .collect();
+    let mut covered = vec![false; shown.len()];
+    for &t in &receivers.texel {
+        covered[t as usize] = true;
+    }
+    let at = fit_at(&shown, &covered, w, h, reach, mode, noise_rays);
+    // An edge receiver (its texel's centre outside its chart) is the
+    // target of its texel's edge row ([`super::edge`]): its own value is
+    // read on the chart's edge, so it keeps its rays.
+    (receivers.texel.iter().zip(&receivers.center_inside))
+        .map(|(&t, &centre)| centre && at.fitted[t as usize])
+        .collect()
+}
+
 /// A page's traced fit (its [`anchors`]), kept by the page so that runs
 /// baking it again (`aobake report`'s sweep) trace it once: valid for the
 /// same free texels and layer.
@@ -213,141 +307,6 @@ pub struct FitTargets {
 
 /// Where a page keeps its [`FitTargets`].
 pub(crate) type FitCache = std::sync::Mutex<Option<std::sync::Arc<FitTargets>>>;
-
-/// A surface point of the fit: its UV in texels and where it lies.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FitPoint {
-    /// Lightmap position in texel units of the page.
-    pub uv: Vec2,
-    /// Its triangle (index into the page's triangles) and barycentrics.
-    pub tri: u32,
-    pub bary: [f32; 3],
-}
-
-/// The four texels (indices into a `width` x `height` page) of the
-/// bilinear cell of a lookup at `uv` (texel units): the engine view's
-/// [`taps`], so the fit and the metric agree on every cell.
-fn cell_taps(uv: Vec2, width: u32, height: u32) -> [usize; 4] {
-    taps([uv.x / width as f32, uv.y / height as f32], width, height).map(|(t, _)| t as usize)
-}
-
-/// Whether the bilinear cell of a lookup at `uv` (texel units) has a
-/// free tap (`free` per texel of a `width` x `height` page).
-pub(crate) fn cell_has_free(uv: Vec2, width: u32, height: u32, free: &[bool]) -> bool {
-    cell_taps(uv, width, height).iter().any(|&t| free[t])
-}
-
-/// Whether no tap of the bilinear cell at `uv` (texel units) has its
-/// centre inside a triangle: a sliver's cell, as the engine view
-/// classifies its lookups.
-fn is_sliver_cell(uv: Vec2, width: u32, height: u32, center_inside: &[bool]) -> bool {
-    !cell_taps(uv, width, height)
-        .iter()
-        .any(|&t| center_inside[t])
-}
-
-/// The grid point of global grid cell (`gx`, `gy`): jittered in its cell
-/// of 1 / [`GRID`] texels, the same wherever it is asked for.
-fn grid_point(gx: i64, gy: i64, seed: u64) -> Vec2 {
-    let key = mix64(seed ^ mix64((gx as u64) << 32 ^ (gy as u64 & 0xffff_ffff)));
-    let g = GRID as f32;
-    Vec2::new(
-        (gx as f32 + unit(key)) / g,
-        (gy as f32 + unit(key ^ 0x5bd1_e995)) / g,
-    )
-}
-
-/// The fit's points on `tris` (one page's, `width` x `height`): every
-/// grid point inside a triangle whose cell has a free tap, and the
-/// centroid of a triangle holding none such but whose centroid's cell
-/// has one. In a sliver cell (no tap's centre inside a triangle,
-/// `center_inside` per texel) each grid cell holds [`SLIVER_SUB`]^2 points
-/// instead of one. In triangle order, deterministic for `seed`.
-pub fn points(
-    tris: &[SurfaceTri],
-    width: u32,
-    height: u32,
-    free: &[bool],
-    center_inside: &[bool],
-    seed: u64,
-) -> Vec<FitPoint> {
-    let g = GRID as f32;
-    let per_tri: Vec<Vec<FitPoint>> = tris
-        .par_iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let mut out = Vec::new();
-            let lo = t.uv.iter().fold(Vec2::INFINITY, |a, &p| a.min(p));
-            let hi = t.uv.iter().fold(Vec2::NEG_INFINITY, |a, &p| a.max(p));
-            if !(lo.is_finite() && hi.is_finite()) {
-                return out;
-            }
-            let (gx0, gy0) = ((lo.x * g).floor() as i64, (lo.y * g).floor() as i64);
-            let (gx1, gy1) = ((hi.x * g).floor() as i64, (hi.y * g).floor() as i64);
-            // Whether any grid point falls inside the triangle.
-            let mut any = false;
-            let mut push = |p: Vec2, out: &mut Vec<FitPoint>| {
-                if !inside(p, &t.uv) {
-                    return;
-                }
-                any = true;
-                if cell_has_free(p, width, height, free) {
-                    let (bary, _) = closest_point_barycentric(p, t.uv[0], t.uv[1], t.uv[2]);
-                    out.push(FitPoint {
-                        uv: p,
-                        tri: i as u32,
-                        bary,
-                    });
-                }
-            };
-            for gy in gy0..=gy1 {
-                for gx in gx0..=gx1 {
-                    let centre = Vec2::new(gx as f32 + 0.5, gy as f32 + 0.5) / g;
-                    if is_sliver_cell(centre, width, height, center_inside) {
-                        let s = SLIVER_SUB as i64;
-                        for sy in 0..s {
-                            for sx in 0..s {
-                                let f = grid_point(gx * s + sx, gy * s + sy, seed ^ SLIVER_SEED);
-                                push(f / SLIVER_SUB as f32, &mut out);
-                            }
-                        }
-                    } else {
-                        push(grid_point(gx, gy, seed), &mut out);
-                    }
-                }
-            }
-            let centroid = (t.uv[0] + t.uv[1] + t.uv[2]) / 3.0;
-            if !any && cell_has_free(centroid, width, height, free) {
-                let third = 1.0 / 3.0;
-                out.push(FitPoint {
-                    uv: centroid,
-                    tri: i as u32,
-                    bary: [third; 3],
-                });
-            }
-            out
-        })
-        .collect();
-    per_tri.into_iter().flatten().collect()
-}
-
-/// The key of a fit point's rays (its receiver's `texel`, which seeds its
-/// sequence): a hash of its UV's bits. Points are placed by the global
-/// grid, so a point keeps its key whatever else is on the page.
-fn point_key(uv: Vec2) -> u32 {
-    mix64(u64::from(uv.x.to_bits()) << 32 | u64::from(uv.y.to_bits())) as u32
-}
-
-/// Points per grid cell edge in a sliver's cell: SLIVER_SUB^2 points where
-/// the grid has one, each a full fit row. A chart's acute tip or a strip
-/// thinner than the grid spacing gets a grid point only here and there, and
-/// its few rows lose to the texels' data terms, so its lookups keep the
-/// edge receivers' values. Full rows matter: weighted by their share of
-/// the cell they did worse than none; 8 per edge does no better than 4
-/// for far more points (`docs/measurements/constants.md`, SLIVER_SUB).
-pub const SLIVER_SUB: u32 = 4;
-
-const SLIVER_SEED: u64 = 0x51f1_7e55;
 
 /// A seam row's scale with the border fit on: twice the seams-only weight
 /// against the data term, so the two sides' noisy fits still meet.
@@ -406,24 +365,24 @@ pub fn anchors(
     // (a moved mesh's cells turning flat or varied) leaves every other
     // point's rays as they were, so the fit changes only near the edit.
     for p in &points {
-        r.push_surface_point(point_key(p.uv), &tris[p.tri as usize], p.bary, true);
+        r.push_surface_point(p.block, &tris[p.tri as usize], p.bary, true);
     }
     let params = BakeParams { max_distance, seed };
     let inside = validity::inside_geometry(&r, tracer, max_distance, seed);
     let (w, h) = (width as f32, height as f32);
     let uv = |p: &FitPoint| [p.uv.x / w, p.uv.y / h];
-    let bake = mc::bake(&r, tracer, FIT_RAYS, &params, &|_| {});
-    let v = layer.then(|| visibility::bake(&r, tracer, FIT_VISIBILITY_RAYS, &params));
+    let slots: Vec<u32> = points.iter().map(|p| p.slot).collect();
+    let (traced, v) = targets(&r, &slots, tracer, &params, layer);
     let anchors: Vec<Anchor> = points
         .iter()
         .enumerate()
         .filter(|&(k, _)| !inside[k])
         .map(|(k, p)| {
             let mut target = Vec::with_capacity(1 + SH_COUNT + VIS_COUNT);
-            target.push(bake.ao[k]);
-            target.extend_from_slice(&bake.sh[k]);
+            target.push(traced[k].0);
+            target.extend_from_slice(&traced[k].1);
             if let Some(v) = &v {
-                target.extend_from_slice(&v.v[k]);
+                target.extend_from_slice(&v[k]);
             }
             Anchor {
                 uv: uv(p),
@@ -432,7 +391,13 @@ pub fn anchors(
             }
         })
         .collect();
-    let rays = bake.rays + v.map_or(0, |v| v.rays);
+    let n = points.len() as u64;
+    let rays = n * FIT_RAYS as u64
+        + if layer {
+            n * FIT_VISIBILITY_RAYS as u64
+        } else {
+            0
+        };
     if all.is_empty() {
         return (anchors, rays);
     }
@@ -443,32 +408,40 @@ pub fn anchors(
     (rows, rays)
 }
 
+/// AO and SH at every receiver of `r` (the fit's points, each keyed by its
+/// block) from its [`FIT_RAYS`]-ray run `slots[k]` of its sequence, and
+/// with `layer` the visibility layer's coefficients from its
+/// [`FIT_VISIBILITY_RAYS`]-ray run `slots[k]` of the layer's sequence.
+#[allow(clippy::type_complexity)]
+fn targets(
+    r: &Receivers,
+    slots: &[u32],
+    tracer: &Tracer,
+    params: &BakeParams,
+    layer: bool,
+) -> (Vec<(f32, [f32; SH_COUNT])>, Option<Vec<[f32; VIS_COUNT]>>) {
+    let mut traced = vec![(0.0f32, [0.0f32; SH_COUNT]); r.len()];
+    for_each_receiver(
+        tracer,
+        &mut traced,
+        64,
+        |k, _, batch| mc::emit_receiver(r, k, slots[k] * FIT_RAYS, FIT_RAYS, params, batch),
+        |k, out, directions, occluded| *out = mc::integrate_receiver(r, k, directions, occluded),
+        &|_| {},
+    );
+    let v = layer.then(|| {
+        let n = FIT_VISIBILITY_RAYS;
+        let span = |k: usize| (slots[k] * n, n);
+        visibility::finish(r, visibility::shares_from(r, tracer, span, params))
+    });
+    (traced, v)
+}
+
 #[cfg(test)]
 mod tests {
+    use super::points::tests::square;
     use super::*;
-    use glam::{Vec3, Vec3A};
-
-    fn square(w: f32) -> Vec<SurfaceTri> {
-        // A w x w texel square at (2, 2), as two triangles.
-        let c = [
-            Vec2::new(2.0, 2.0),
-            Vec2::new(2.0 + w, 2.0),
-            Vec2::new(2.0 + w, 2.0 + w),
-            Vec2::new(2.0, 2.0 + w),
-        ];
-        let p = c.map(|c| Vec3::new(c.x, c.y, 0.0));
-        [[0, 1, 2], [0, 2, 3]]
-            .iter()
-            .map(|i| SurfaceTri {
-                mesh: 0,
-                uv: i.map(|k| c[k]),
-                pos: i.map(|k| p[k]),
-                nrm: None,
-                geo: Vec3::Z,
-                footprint: 1.0,
-            })
-            .collect()
-    }
+    use glam::{Vec2, Vec3, Vec3A};
 
     /// A w x w texel square at UV `at`, lying at world `at + offset` in
     /// the z = 0 plane.
@@ -521,79 +494,42 @@ mod tests {
     }
 
     #[test]
-    fn grid_points_are_the_same_from_either_triangle() {
-        assert_eq!(grid_point(7, -3, 11), grid_point(7, -3, 11));
-        let p = grid_point(7, -3, 11);
-        assert!(p.x >= 3.5 && p.x < 4.0 && p.y >= -1.5 && p.y < -1.0, "{p}");
-    }
-
-    #[test]
-    fn points_cover_the_cells_with_a_free_tap_at_the_grid_density() {
-        // A 6 x 6 texel square on a 10 x 10 page, every texel free: its
-        // area times GRID^2 points, each once.
-        let tris = square(6.0);
-        let all = vec![true; 100];
-        let pts = points(&tris, 10, 10, &all, &all, 3);
-        let expected = 36.0 * (GRID * GRID) as f32;
-        assert!((pts.len() as f32 - expected).abs() <= 2.0, "{}", pts.len());
-        // No texel free: no point.
-        assert!(points(&tris, 10, 10, &[false; 100], &all, 3).is_empty());
-        // Only texel (2, 2) free: points only in the four cells around its
-        // centre (2.5, 2.5), i.e. within one texel of it.
-        let mut one = vec![false; 100];
-        one[2 * 10 + 2] = true;
-        let pts = points(&tris, 10, 10, &one, &all, 3);
-        assert!(!pts.is_empty());
-        for p in &pts {
-            assert!(
-                (p.uv - Vec2::splat(2.5)).abs().max_element() <= 1.0,
-                "{p:?}"
-            );
-        }
-    }
-
-    #[test]
-    fn a_triangle_smaller_than_the_grid_gets_its_centroid() {
-        let tris = square(0.05);
-        let all = vec![true; 100];
-        let pts = points(&tris, 10, 10, &all, &all, 3);
-        assert_eq!(pts.len(), 2, "{pts:?}");
-        for p in &pts {
-            assert_eq!(p.bary, [1.0 / 3.0; 3]);
-        }
-    }
-
-    #[test]
-    fn a_slivers_cells_hold_the_dense_points() {
-        // A strip 0.3 x 6 texels at (2, 2) on a 10 x 10 page, every texel
-        // free. With no texel centre inside a triangle every cell is a
-        // sliver's: SLIVER_SUB^2 times the grid's points per area.
-        let mut tris = square(6.0);
-        for t in &mut tris {
-            for p in &mut t.uv {
-                p.y = 2.0 + (p.y - 2.0) * 0.05;
+    fn a_blocks_points_together_trace_one_stratified_set() {
+        // Four points of one block at one surface point under a slanted
+        // roof: their runs of the block's sequence together are its first
+        // 4 x FIT_RAYS points, so their mean AO is a 4 x FIT_RAYS-ray
+        // Monte Carlo estimate of that point (mc::bake, keyed alike).
+        let tri = square(4.0)[0].clone();
+        let roof = [
+            Vec3A::new(-5.0, -5.0, 0.5),
+            Vec3A::new(10.0, -5.0, 0.5),
+            Vec3A::new(-5.0, 10.0, 2.0),
+        ];
+        let tracer = Tracer::with_sides(&[roof], &[false]);
+        let params = BakeParams {
+            max_distance: 3.0,
+            seed: 5,
+        };
+        let at = |n: usize| {
+            let mut r = Receivers {
+                width: 10,
+                height: 10,
+                ..Default::default()
+            };
+            for _ in 0..n {
+                r.push_surface_point(77, &tri, [0.9, 0.05, 0.05], true);
             }
-        }
-        let all = vec![true; 100];
-        let none = vec![false; 100];
-        let area = 6.0 * 0.3;
-        let grid = points(&tris, 10, 10, &all, &all, 3).len() as f32;
-        let dense = points(&tris, 10, 10, &all, &none, 3).len() as f32;
-        let per = (GRID * GRID) as f32;
-        let sub = (SLIVER_SUB * SLIVER_SUB) as f32;
-        assert!((grid - area * per).abs() <= 4.0, "{grid}");
-        assert!(
-            (dense - area * per * sub).abs() <= 0.15 * area * per * sub,
-            "{dense}"
-        );
-        // Deterministic, and every point inside the strip.
-        let again = points(&tris, 10, 10, &all, &none, 3);
-        assert_eq!(again, points(&tris, 10, 10, &all, &none, 3));
-        for p in &again {
-            assert!(
-                p.uv.y >= 2.0 && p.uv.y <= 2.3 && p.uv.x >= 2.0 && p.uv.x <= 8.0,
-                "{p:?}"
-            );
-        }
+            r
+        };
+        let (runs, _) = targets(&at(4), &[0, 1, 2, 3], &tracer, &params, false);
+        let mean = runs.iter().map(|t| t.0).sum::<f32>() / 4.0;
+        let whole = mc::bake(&at(1), &tracer, 4 * FIT_RAYS, &params, &|_| {});
+        let first = mc::bake(&at(1), &tracer, FIT_RAYS, &params, &|_| {});
+        assert!((mean - whole.ao[0]).abs() < 1e-6, "{mean} {}", whole.ao[0]);
+        // The roof occludes part of the hemisphere, and one run alone is
+        // not the whole set's estimate (the runs are not the same rays).
+        assert!(mean > 0.1 && mean < 0.9, "{mean}");
+        assert!((first.ao[0] - whole.ao[0]).abs() > 1e-3, "{}", first.ao[0]);
+        assert_eq!(runs[0].0, first.ao[0]);
     }
 }
