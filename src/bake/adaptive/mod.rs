@@ -235,7 +235,21 @@ pub fn bake(
             adaptive_pass::adaptive_pass(
                 receivers, tracer, &mut sums, start, &first, filtered, p, &quiet,
             );
-            let (ao, _) = filter(&sums, &first);
+            // The AO alone, filtered with the same weights.
+            let ao: Vec<[f32; 1]> = (0..n)
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|r| {
+                    let (normal, geo) = (receivers.normal[r], receivers.geo_normal[r]);
+                    [sums::below_compensated(&sums[r], first[r], normal, geo, filtered(r))[0]]
+                })
+                .collect();
+            let ao: Vec<f32> = (support.filter_values(ao).into_iter().enumerate())
+                .map(|(r, [a])| {
+                    let below = sums::below_fraction(receivers.normal[r], receivers.geo_normal[r]);
+                    (a - below).clamp(0.0, 1.0)
+                })
+                .collect();
             let set = sets(&ao, &inside);
             let rays: Vec<u32> = (0..n)
                 .map(|r| if set[r] { first[r] } else { rays[r] })
