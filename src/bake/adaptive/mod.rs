@@ -202,22 +202,14 @@ pub fn bake(
         sigma_texels: &sigma_texels,
         z_min: &z_min,
     };
-    // Equal weight per receiver: weighting by ray count (inverse
+    // A receiver's 10 values (AO, SH) from its sums at `rays` rays. Equal
+    // weight per receiver in the filter: weighting by ray count (inverse
     // variance) biases dark, because the allocation sends more rays to
     // occluded receivers (Cornell 512, adaptive:64: AO bias -0.0021 with
     // it).
-    let filter = |sums: &[RaySums], rays: &[u32]| {
-        let values: Vec<[f32; 10]> = (0..n)
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|r| {
-                let (normal, geo) = (receivers.normal[r], receivers.geo_normal[r]);
-                sums::below_compensated(&sums[r], rays[r], normal, geo, filtered(r))
-            })
-            .collect();
-        let (mut ao, mut sh): (Vec<f32>, Vec<[f32; SH_COUNT]>) = support.filter(values);
-        sums::finish(&receivers.normal, &receivers.geo_normal, &mut ao, &mut sh);
-        (ao, sh)
+    let values = |sums: &[RaySums], r: usize, rays: u32| {
+        let (normal, geo) = (receivers.normal[r], receivers.geo_normal[r]);
+        sums::below_compensated(&sums[r], rays, normal, geo, filtered(r))
     };
     let start = adaptive_pass::Start::PrePass(o.pre_rays);
     let rays = match fit_sets {
@@ -239,16 +231,10 @@ pub fn bake(
             let ao: Vec<[f32; 1]> = (0..n)
                 .into_par_iter()
                 .with_min_len(1024)
-                .map(|r| {
-                    let (normal, geo) = (receivers.normal[r], receivers.geo_normal[r]);
-                    [sums::below_compensated(&sums[r], first[r], normal, geo, filtered(r))[0]]
-                })
+                .map(|r| [values(&sums, r, first[r])[0]])
                 .collect();
             let ao: Vec<f32> = (support.filter_values(ao).into_iter().enumerate())
-                .map(|(r, [a])| {
-                    let below = sums::below_fraction(receivers.normal[r], receivers.geo_normal[r]);
-                    (a - below).clamp(0.0, 1.0)
-                })
+                .map(|(r, [a])| sums::finish_ao(a, receivers.normal[r], receivers.geo_normal[r]))
                 .collect();
             let set = sets(&ao, &inside);
             let rays: Vec<u32> = (0..n)
@@ -262,8 +248,14 @@ pub fn bake(
         }
     };
     timer.lap("adaptive pass");
-    let (ao, sh) = filter(&sums, &rays);
+    let all: Vec<[f32; 10]> = (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|r| values(&sums, r, rays[r]))
+        .collect();
     drop(sums);
+    let (mut ao, mut sh): (Vec<f32>, Vec<[f32; SH_COUNT]>) = support.filter(all);
+    sums::finish(&receivers.normal, &receivers.geo_normal, &mut ao, &mut sh);
     timer.lap("filter");
 
     let layer = visibility.then(|| {

@@ -94,6 +94,13 @@ pub fn below_fraction(n: Vec3, geo: Vec3) -> f32 {
     ((1.0 - n.dot(geo)) / 2.0).clamp(0.0, 1.0)
 }
 
+/// A receiver's filtered AO `a` finished: less the exact share below its
+/// geometric plane ([`below_fraction`]), clamped to [0, 1].
+#[inline]
+pub fn finish_ao(a: f32, n: Vec3, geo: Vec3) -> f32 {
+    (a - below_fraction(n, geo)).clamp(0.0, 1.0)
+}
+
 /// Finishes the filtered values of every receiver: the AO less the exact
 /// share below its geometric plane ([`below_fraction`], clamped to [0,
 /// 1]), the SH plus the open hemisphere's exact projection for its own
@@ -109,9 +116,10 @@ pub fn finish(normal: &[Vec3], geo_normal: &[Vec3], ao: &mut [f32], sh: &mut [[f
         .enumerate()
         .for_each(|(r, (a, s))| {
             let (n, geo) = (normal[r], geo_normal[r]);
-            let (below, below_sh) = (below_fraction(n, geo), sh::below_plane(n, geo));
-            *a = (*a - below).clamp(0.0, 1.0);
-            for ((s, o), b) in s.iter_mut().zip(sh::open_hemisphere(n)).zip(below_sh) {
+            *a = finish_ao(*a, n, geo);
+            for ((s, o), b) in
+                (s.iter_mut().zip(sh::open_hemisphere(n))).zip(sh::below_plane(n, geo))
+            {
                 *s += o - b;
             }
         });
