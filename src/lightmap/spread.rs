@@ -38,40 +38,44 @@ pub fn spread(
             t / receivers.width
         )));
     }
-    let mut covered = vec![false; fill.len()];
-    for &t in &receivers.texel {
-        covered[t as usize] = true;
-    }
-    let pick = |t: &u32| (*t != NONE).then_some(*t as usize);
     let nan = f32::NAN;
     Ok(Lightmap {
         width: receivers.width,
         height: receivers.height,
-        ao: fill
-            .par_iter()
-            .map(|t| pick(t).map_or(1.0, |r| if known(r) { bake.ao[r] } else { nan }))
-            .collect(),
-        sh: fill
-            .par_iter()
-            .map(|t| {
-                pick(t).map_or([0.0; SH_COUNT], |r| match known(r) {
-                    true => bake.sh[r],
-                    false => [nan; SH_COUNT],
-                })
-            })
-            .collect(),
-        covered,
+        ao: shown(fill, 1.0, |r| if known(r) { bake.ao[r] } else { nan }),
+        sh: shown(fill, [0.0; SH_COUNT], |r| match known(r) {
+            true => bake.sh[r],
+            false => [nan; SH_COUNT],
+        }),
+        covered: covered(receivers),
         // A gutter texel far from any receiver: the open hemisphere of +z
         // would be as arbitrary; zero, as for the SH.
         visibility: layer.map(|v| {
-            fill.par_iter()
-                .map(|t| {
-                    pick(t).map_or([0.0; VIS_COUNT], |r| match known(r) {
-                        true => v[r],
-                        false => [nan; VIS_COUNT],
-                    })
-                })
-                .collect()
+            shown(fill, [0.0; VIS_COUNT], |r| match known(r) {
+                true => v[r],
+                false => [nan; VIS_COUNT],
+            })
         }),
     })
+}
+
+/// Per texel of the page, whether a receiver lies in it.
+pub(crate) fn covered(receivers: &Receivers) -> Vec<bool> {
+    let mut covered = vec![false; (receivers.width * receivers.height) as usize];
+    for &t in &receivers.texel {
+        covered[t as usize] = true;
+    }
+    covered
+}
+
+/// Per texel, `value` of the receiver it shows in `fill`
+/// ([`super::dilate::fill_map`]), `gutter` where it shows none.
+pub(crate) fn shown<T: Copy + Send + Sync>(
+    fill: &[u32],
+    gutter: T,
+    value: impl Fn(usize) -> T + Sync,
+) -> Vec<T> {
+    fill.par_iter()
+        .map(|&r| if r == NONE { gutter } else { value(r as usize) })
+        .collect()
 }

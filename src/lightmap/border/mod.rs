@@ -267,20 +267,8 @@ pub fn fit_sets(
 ) -> Vec<bool> {
     let (w, h) = (receivers.width, receivers.height);
     let fill = super::dilate::fill_map(w, h, &receivers.texel, inside);
-    let shown: Vec<f32> = fill
-        .par_iter()
-        .map(|&r| {
-            if r == super::dilate::NONE {
-                1.0
-            } else {
-                ao[r as usize]
-            }
-        })
-        .collect();
-    let mut covered = vec![false; shown.len()];
-    for &t in &receivers.texel {
-        covered[t as usize] = true;
-    }
+    let shown = super::spread::shown(&fill, 1.0, |r| ao[r]);
+    let covered = super::spread::covered(receivers);
     let at = fit_at(&shown, &covered, w, h, reach, mode, noise_rays);
     // An edge receiver (its texel's centre outside its chart) is the
     // target of its texel's edge row ([`super::edge`]): its own value is
