@@ -162,6 +162,21 @@ fn open_box(lo: [f32; 3], hi: [f32; 3]) -> Vec<MeshSpec> {
     ]
 }
 
+/// A 60 cm floor centred at (0.3, 0.3) with open boxes (lower and upper
+/// corners) standing on it, as one mesh.
+fn boxes_on_a_floor(boxes: &[([f32; 3], [f32; 3])]) -> aobake::gltf::Scene {
+    let mut parts = vec![quad(
+        [0.3, 0.3, 0.0],
+        [0.3, 0.0, 0.0],
+        [0.0, 0.3, 0.0],
+        true,
+    )];
+    for &(lo, hi) in boxes {
+        parts.extend(open_box(lo, hi));
+    }
+    scene(&glb(&[merge(&parts)], plain_nodes(1)))
+}
+
 /// Mean AO bias per class of floor texels against a reference.
 fn class_bias(
     a: &aobake::job::Baked,
@@ -188,15 +203,10 @@ fn contact_shadows_of_a_box_on_the_floor_and_a_1_cm_crevice_keep_their_depth() {
     // Two 10 cm boxes on a floor, 1 cm apart: the floor beside a box
     // (contact), inside the crevice, and away from both; the default
     // quality against 1024-ray Monte Carlo, bias per class.
-    let mut parts = vec![quad(
-        [0.3, 0.3, 0.0],
-        [0.3, 0.0, 0.0],
-        [0.0, 0.3, 0.0],
-        true,
-    )];
-    parts.extend(open_box([0.2, 0.2, 0.0], [0.3, 0.4, 0.1]));
-    parts.extend(open_box([0.31, 0.2, 0.0], [0.41, 0.4, 0.1]));
-    let sc = scene(&glb(&[merge(&parts)], plain_nodes(1)));
+    let sc = boxes_on_a_floor(&[
+        ([0.2, 0.2, 0.0], [0.3, 0.4, 0.1]),
+        ([0.31, 0.2, 0.0], [0.41, 0.4, 0.1]),
+    ]);
     let reference = bake_raw(&sc, settings(256, 1024, Some(0.3)));
     // An all-open bake of the same atlas (no occluder within reach) gives
     // each class's depth of shadow: reference minus 1.
@@ -523,14 +533,7 @@ fn receivers_the_fit_sets_stop_at_a_fit_points_rays_and_the_rest_keep_theirs() {
     // sets. The default bake against the same bake with the fit off (one
     // round, nothing set), receiver by receiver: the same allocation, the
     // set receivers stopped at a fit point's count.
-    let mut parts = vec![quad(
-        [0.3, 0.3, 0.0],
-        [0.3, 0.0, 0.0],
-        [0.0, 0.3, 0.0],
-        true,
-    )];
-    parts.extend(open_box([0.2, 0.2, 0.0], [0.3, 0.4, 0.1]));
-    let sc = scene(&glb(&[merge(&parts)], plain_nodes(1)));
+    let sc = boxes_on_a_floor(&[([0.2, 0.2, 0.0], [0.3, 0.4, 0.1])]);
     let mut s = settings(256, DEFAULT_RAYS, Some(0.3));
     s.method = Method::Adaptive;
     let fit = bake_raw(&sc, s.clone());
