@@ -32,7 +32,9 @@ pub enum AtlasSize {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UnwrapOptions {
     pub size: AtlasSize,
-    /// Empty texels around each chart (charts are `2 * padding` apart).
+    /// Padding between charts: with `p >= 1`, no two charts share a texel a
+    /// bilinear lookup on them reads, and those texels lie `2 (p - 1)`
+    /// apart; with 0, charts' texels may touch.
     pub padding: u32,
     pub packing: Packing,
     /// Smallest chart width in texels (0: none); see
@@ -86,25 +88,32 @@ pub struct Relaxed {
 /// minimum width take most of the page and the packer shrinks the density
 /// until every chart is a few texels of border (the flight helmet's 2,530
 /// charts at 256: 2.4%, against 41% at 1024 and 15% with a texel of
-/// padding). There the first of [`relaxed_options`] is tried, and taken
-/// where it at least doubles the texel density ([`STARVED_GAIN`]).
-pub const STARVED_UTILIZATION: f32 = 0.1;
+/// padding). There, as where the charts do not fit, the next of
+/// [`relaxed_options`] is tried, and taken where it at least doubles the
+/// texel density ([`STARVED_GAIN`]); a rung that fits starved is passed
+/// over the same way (the flight helmet at 128: padding 1 with width 1
+/// fits at 23 texels per unit, no padding at 68).
+pub const STARVED_UTILIZATION: f32 = 0.2;
 
-/// How many times the asked density a starved page's relaxed packing must
-/// reach to be taken.
+/// How many times a starved page's density the next rung must reach to be
+/// taken.
 pub const STARVED_GAIN: f64 = 2.0;
 
 /// The options tried, in order, when the charts of a `--resolution` atlas
 /// need more than one page with the `padding` and `min_chart_width` asked
-/// for: one texel of padding (charts two apart, so a bilinear lookup at a
-/// chart's edge still reads its own gutter) and charts at least one texel
+/// for (or fit it starved): one texel of padding (no texel a bilinear
+/// lookup reads is shared by two charts) and charts at least one texel
 /// wide; then the same padding and no minimum width; then neither (the
 /// neighbouring charts' texels touch: lookups at chart edges blend them,
 /// which the warning says). The width goes before the padding: on a page
 /// that tight, the stretched charts and the bent strips cut into pieces
 /// cost more texels than they give back, while a texel of padding keeps
 /// every lookup on its own chart (`docs/measurements/chart-count.md`,
-/// small pages). Only options smaller than those asked are tried.
+/// small pages). Only options smaller than those asked are tried. Each
+/// is packed with the charts' minima on texel centres
+/// (`uvunwrap::Options::centre_charts`): on a page of many small charts the
+/// texels it saves are worth more than the free texel beyond a chart's
+/// edge that the border fit uses, on a page of large ones they are not.
 pub fn relaxed_options(padding: u32, min_chart_width: f32) -> Vec<Relaxed> {
     let width = min_chart_width.min(1.0);
     let mut options = [(padding.min(1), width), (padding.min(1), 0.0), (0, 0.0)]
@@ -282,39 +291,40 @@ pub(crate) fn unwrap_with_progress(
         }
         (Err(e), _) => return Err(Error::Unwrap(e.to_string())),
     };
-    // A `--resolution` atlas is one page: where the charts need more, less
-    // padding and narrower charts before a refusal.
+    // A `--resolution` atlas is one page: where the charts need more, or
+    // fit but starve it, less padding and narrower charts before a refusal.
     let mut relaxed = None;
     if matches!(options.size, AtlasSize::Resolution(_)) {
-        for r in relaxed_options(options.padding, options.min_chart_width) {
-            if atlas.page_count <= 1 {
+        let mut rungs = relaxed_options(options.padding, options.min_chart_width).into_iter();
+        let asked_fits = atlas.page_count <= 1;
+        loop {
+            let fits = atlas.page_count <= 1;
+            if fits && atlas.utilization >= STARVED_UTILIZATION {
                 break;
             }
+            let Some(r) = rungs.next() else { break };
             let o = uvunwrap::Options {
                 padding: r.padding,
                 min_chart_width: r.min_chart_width,
+                centre_charts: true,
                 ..opts
             };
-            atlas = generate(&o).map_err(|e| Error::Unwrap(e.to_string()))?;
-            relaxed = Some(r);
-        }
-        // Fits, but starved: the first relaxed packing where it pays.
-        let first = relaxed_options(options.padding, options.min_chart_width);
-        if let (None, Some(&r)) = (relaxed, first.first())
-            && atlas.page_count <= 1
-            && atlas.utilization < STARVED_UTILIZATION
-        {
-            let o = uvunwrap::Options {
-                padding: r.padding,
-                min_chart_width: r.min_chart_width,
-                ..opts
-            };
-            let wider = generate(&o).map_err(|e| Error::Unwrap(e.to_string()))?;
-            if wider.page_count <= 1
-                && wider.texels_per_unit as f64 >= STARVED_GAIN * atlas.texels_per_unit as f64
+            let next = generate(&o).map_err(|e| Error::Unwrap(e.to_string()))?;
+            if !fits {
+                atlas = next;
+                relaxed = Some(Relaxed {
+                    starved: asked_fits,
+                    ..r
+                });
+            } else if next.page_count <= 1
+                && next.texels_per_unit as f64 >= STARVED_GAIN * atlas.texels_per_unit as f64
             {
-                atlas = wider;
-                relaxed = Some(Relaxed { starved: true, ..r });
+                // Fits, but starved: the next rung where it pays.
+                atlas = next;
+                relaxed = Some(Relaxed {
+                    starved: asked_fits,
+                    ..r
+                });
             }
         }
         if atlas.page_count > 1 {

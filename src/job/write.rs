@@ -81,7 +81,7 @@ pub fn write(
             if relaxed.padding == 0 {
                 ", so lookups at chart edges blend neighbouring charts"
             } else {
-                ""
+                ", charts on texel centres"
             },
         ));
     }

@@ -862,8 +862,8 @@ mod tests {
             [0.0, 5.0],
         ];
         let tris = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]];
-        let masks = chart_masks(&uvs, &tris, [3.0, 5.0], 4.3, 1, true);
-        let mut p = Profile::from_bits(&rasterize_chart(&uvs, &tris, [3.0, 5.0], 4.3, 1));
+        let masks = chart_masks(&uvs, &tris, [3.0, 5.0], 4.3, 1, false, true);
+        let mut p = Profile::from_bits(&rasterize_chart(&uvs, &tris, [3.0, 5.0], 4.3, 1, false));
         assert_eq!(p, profile_of(&masks.rot[0]));
         for (k, m) in masks.rot.iter().enumerate() {
             let mut expected = profile_of(m);

@@ -171,9 +171,10 @@ pub(crate) fn chart_masks(
     size: V2,
     s: f64,
     padding: u32,
+    centred: bool,
     all_rotations: bool,
 ) -> ChartMasks {
-    let m0 = Mask::from_bits(&rasterize_chart(uvs, tris, size, s, padding));
+    let m0 = Mask::from_bits(&rasterize_chart(uvs, tris, size, s, padding, centred));
     let rot = if all_rotations {
         let m1 = m0.rotate90();
         let (m2, m3) = (m0.rotate180(), m1.rotate180());
@@ -365,7 +366,7 @@ impl Page {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::raster::{content_size, rotate_texel};
+    use crate::raster::{content_offset, content_size, rotate_texel};
 
     #[test]
     fn rotations_match_transform() {
@@ -381,19 +382,26 @@ mod tests {
         ];
         let tris = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]];
         let s = 3.7;
-        let derived = chart_masks(&uvs, &tris, [3.0, 2.0], s, 1, true);
+        let derived = chart_masks(&uvs, &tris, [3.0, 2.0], s, 1, true, true);
         let (cw, ch) = content_size([3.0, 2.0], s);
+        // The chart rotated with its padded bitmap (the content lies half a
+        // texel off centre in it: `content_offset`), given to the
+        // rasterizer at the same offset.
+        let off = content_offset(1, true);
         for k in 0..4u8 {
             let moved: Vec<V2> = uvs
                 .iter()
-                .map(|&q| rotate_texel([q[0] * s, q[1] * s], k, cw, ch))
+                .map(|&q| {
+                    let p = rotate_texel([q[0] * s + off, q[1] * s + off], k, cw + 2, ch + 2);
+                    [p[0] - off, p[1] - off]
+                })
                 .collect();
             let size = if k % 2 == 0 {
                 [cw as f64, ch as f64]
             } else {
                 [ch as f64, cw as f64]
             };
-            let direct = &chart_masks(&moved, &tris, size, 1.0, 1, false).rot[0];
+            let direct = &chart_masks(&moved, &tris, size, 1.0, 1, true, false).rot[0];
             let d = &derived.rot[k as usize];
             assert_eq!((d.w, d.h), (direct.w, direct.h), "rotation {k}");
             for r in 0..d.h {
@@ -431,13 +439,14 @@ mod tests {
             [3, 0, 4],
             [3, 4, 7],
         ];
-        let frame = chart_masks(&uvs, &tris, [10.0, 10.0], 1.0, 0, false);
+        let frame = chart_masks(&uvs, &tris, [10.0, 10.0], 1.0, 0, false, false);
         let small = chart_masks(
             &[[0.0, 0.0], [1.5, 0.0], [0.0, 1.5]],
             &[[0, 1, 2]],
             [1.5, 1.5],
             1.0,
             0,
+            false,
             false,
         );
         let mut page = Page::new(10, 10);

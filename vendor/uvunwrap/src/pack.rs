@@ -57,6 +57,8 @@ pub(crate) struct Packer<'a> {
     pub charts: &'a [ChartGeom<'a>],
     pub tiles: &'a [TileSpec<'a>],
     pub padding: u32,
+    /// Charts' minima on texel centres ([`crate::Options::centre_charts`]).
+    pub centred: bool,
     pub allow_rotation: bool,
     pub method: Packing,
     /// Largest chart side in texels (0: no limit); bigger charts are scaled down.
@@ -200,6 +202,7 @@ impl Packer<'_> {
                         c.size,
                         chart_density(c.size, s, self.max_chart_size),
                         self.padding,
+                        self.centred,
                         self.allow_rotation,
                     );
                     if b > 1 {
@@ -218,9 +221,16 @@ impl Packer<'_> {
             Packing::Fast => {
                 let mut profiles = par::map_ref(self.charts, |c| {
                     let s = chart_density(c.size, s, self.max_chart_size);
-                    Profile::from_bits(&rasterize_chart(c.uvs, c.tris, c.size, s, self.padding))
-                        .oriented(self.allow_rotation)
-                        .downsample(b)
+                    Profile::from_bits(&rasterize_chart(
+                        c.uvs,
+                        c.tris,
+                        c.size,
+                        s,
+                        self.padding,
+                        self.centred,
+                    ))
+                    .oriented(self.allow_rotation)
+                    .downsample(b)
                 });
                 profiles.extend(instances.map(|(w, h)| Profile::rect(w, h)));
                 Shapes::Profiles(profiles)
@@ -407,9 +417,9 @@ fn round_candidates(lo: f64, hi: f64, prediction: Option<f64>) -> Vec<f64> {
             let (a, b) = ((s / PREDICTION_WINDOW).max(lo), (s * PREDICTION_WINDOW).min(hi));
             let mut c = inner(a, b);
             // The prediction itself replaces the candidate nearest it.
-            if let Some(near) = (0..c.len()).min_by(|&i, &j| {
-                (c[i] / s).ln().abs().total_cmp(&(c[j] / s).ln().abs())
-            }) {
+            if let Some(near) = (0..c.len())
+                .min_by(|&i, &j| (c[i] / s).ln().abs().total_cmp(&(c[j] / s).ln().abs()))
+            {
                 c[near] = s;
             }
             c.sort_by(f64::total_cmp);

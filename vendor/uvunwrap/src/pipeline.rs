@@ -256,6 +256,7 @@ fn pack_meshes(
         charts: &direct,
         tiles: &tiles,
         padding: options.padding,
+        centred: options.centre_charts,
         allow_rotation: options.allow_rotation,
         method: options.packing,
         max_chart_size: options.max_chart_size,
@@ -300,7 +301,7 @@ fn assemble_mesh(
                 let density = pack::chart_density(ch.size, atlas_density, options.max_chart_size);
                 chart_texels.push(ch.area * density * density);
                 pages.push(Some(placement.page));
-                place_chart(ch, placement, density, pad, [0.0, 0.0], page)
+                place_chart(ch, placement, density, options, [0.0, 0.0], page)
             }
             Slot::Tiled { tile } => {
                 // UVs are relative to the tile's content box, inside its outer
@@ -319,7 +320,14 @@ fn assemble_mesh(
                 let content = layout
                     .inner
                     .map(|e| (e * layout.density).max(f64::MIN_POSITIVE));
-                place_chart(ch, layout.placements[ci], density, pad, [pad, pad], content)
+                place_chart(
+                    ch,
+                    layout.placements[ci],
+                    density,
+                    options,
+                    [pad, pad],
+                    content,
+                )
             }
         })
         .collect();
@@ -352,20 +360,29 @@ fn place_chart(
     chart: &param::Chart,
     placement: pack::Placement,
     density: f64,
-    pad: f64,
+    options: &Options,
     origin: V2,
     extent: V2,
 ) -> Vec<[f32; 2]> {
+    let padding = options.padding;
     let (cw, ch) = raster::content_size(chart.size, density);
+    // The chart as it lies in its padded bitmap, which the packer placed
+    // rotated as a whole.
+    let (pw, ph) = (cw + 2 * padding, ch + 2 * padding);
+    let off = raster::content_offset(padding, options.centre_charts);
     chart
         .uvs
         .iter()
         .map(|&[x, y]| {
             // Quarter-turn rotations keep orientation (no mirroring).
-            let [x, y] =
-                raster::rotate_texel([x * density, y * density], placement.rotation, cw, ch);
-            let tx = placement.x as f64 + pad + x - origin[0];
-            let ty = placement.y as f64 + pad + y - origin[1];
+            let [x, y] = raster::rotate_texel(
+                [x * density + off, y * density + off],
+                placement.rotation,
+                pw,
+                ph,
+            );
+            let tx = placement.x as f64 + x - origin[0];
+            let ty = placement.y as f64 + y - origin[1];
             [
                 (tx / extent[0]).clamp(0.0, 1.0) as f32,
                 (ty / extent[1]).clamp(0.0, 1.0) as f32,

@@ -109,16 +109,46 @@ pub(crate) fn next_in_row(row: &[u64], x: u32, value: bool) -> u32 {
     }
 }
 
-/// A chart (UVs in world units, minimum at the origin) rasterized
-/// conservatively at density `s`, every texel its triangles touch, then
-/// dilated by `padding`: its padded bitmap, `padding` texels larger than its
-/// content box on every side.
+/// The bilinear weight up to which a texel a lookup reads counts as not
+/// read: a lookup on a chart blends at most this share of a texel packed
+/// against it. Without it, a chart whose minimum lies exactly on a texel
+/// centre would read the texel a whole texel before it at weight 0, and
+/// f32 rounding of the final UVs decides whether it does.
+pub(crate) const READ_WEIGHT: f64 = 1e-3;
+
+/// Where a chart's content (its UVs scaled to texels, minimum at the
+/// origin) starts in its padded bitmap, along both axes: `padding`, or
+/// with padding and `centred` half a texel less, so that the chart's
+/// minimum lies on a texel centre. A bilinear lookup then reads no texel
+/// before it, and a chart `w` texels wide reads `ceil(w) + 1` texels along
+/// an axis, where from a texel edge it reads `floor(w + 0.5) + 2` (one
+/// more for half of all widths) ([`crate::Options::centre_charts`]).
+pub(crate) fn content_offset(padding: u32, centred: bool) -> f64 {
+    if padding > 0 && centred {
+        padding as f64 - 0.5
+    } else {
+        padding as f64
+    }
+}
+
+/// A chart (UVs in world units, minimum at the origin) rasterized at
+/// density `s` into its padded bitmap, `padding` texels larger than its
+/// content box on every side, the content at [`content_offset`].
+///
+/// With padding, the bitmap holds every texel a bilinear lookup on the
+/// chart reads (its centre within a texel of the chart along both axes)
+/// with a weight over `READ_WEIGHT`, dilated by `padding - 1`: two charts
+/// whose bitmaps do not overlap never share a texel a lookup reads, and
+/// with padding `p` lie `2 (p - 1)` texels apart beyond them. Without
+/// padding, every texel the chart's triangles touch (conservative), so
+/// lookups at chart edges may read a neighbour's texels.
 pub(crate) fn rasterize_chart(
     uvs: &[V2],
     tris: &[[u32; 3]],
     size: V2,
     s: f64,
     padding: u32,
+    centred: bool,
 ) -> Bits {
     let (cw, ch) = content_size(size, s);
     let (w, h) = (
@@ -126,32 +156,44 @@ pub(crate) fn rasterize_chart(
         ch.saturating_add(padding.saturating_mul(2)),
     );
     let mut bits = Bits::new(w, h);
-    let off = padding as f64;
+    let off = content_offset(padding, centred);
     // Grow each triangle slightly so f32 rounding of the final UVs can never
     // move a triangle outside its mask.
     let eps = 1e-3;
+    // How far past a texel's square a triangle may lie for the texel to be
+    // in the bitmap: with padding, the half texel a lookup reaches (its
+    // centre within a texel), less the margin where its weight is at most
+    // `READ_WEIGHT` and the rounding allowance.
+    let reach = if padding > 0 {
+        0.5 - READ_WEIGHT - eps
+    } else {
+        0.0
+    };
     for t in tris {
         let p = t.map(|i| {
             let q = uvs[i as usize];
             [q[0] * s + off, q[1] * s + off]
         });
-        let ymin = p[0][1].min(p[1][1]).min(p[2][1]) - eps;
-        let ymax = p[0][1].max(p[1][1]).max(p[2][1]) + eps;
+        let ymin = p[0][1].min(p[1][1]).min(p[2][1]) - eps - reach;
+        let ymax = p[0][1].max(p[1][1]).max(p[2][1]) + eps + reach;
         let r0 = ((ymin.ceil() - 1.0).max(0.0) as u32).min(h - 1);
         let r1 = (ymax.floor().max(0.0) as u32).min(h - 1);
         for r in r0..=r1 {
-            // X extent of the triangle within the closed row slab [r, r + 1].
-            let Some((xmin, xmax)) = slab_extent(&p, r as f64 - eps, r as f64 + 1.0 + eps) else {
+            // X extent of the triangle within the closed row slab [r, r + 1]
+            // grown by `reach`.
+            let Some((xmin, xmax)) =
+                slab_extent(&p, r as f64 - eps - reach, r as f64 + 1.0 + eps + reach)
+            else {
                 continue;
             };
-            let c0 = ((xmin - eps).ceil() - 1.0).max(0.0) as u32;
-            let c1 = ((xmax + eps).floor().max(0.0) as u32).min(w - 1);
+            let c0 = ((xmin - eps - reach).ceil() - 1.0).max(0.0) as u32;
+            let c1 = ((xmax + eps + reach).floor().max(0.0) as u32).min(w - 1);
             if c0 <= c1 {
                 bits.fill(r, c0, c1 + 1);
             }
         }
     }
-    dilate(&bits, padding)
+    dilate(&bits, padding.saturating_sub(1))
 }
 
 /// X range of a triangle clipped to the horizontal slab `y0 <= y <= y1`.
