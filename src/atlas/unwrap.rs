@@ -327,6 +327,28 @@ pub(crate) fn unwrap_with_progress(
                 });
             }
         }
+        // A relaxed page that kept its padding, packed once more by the
+        // charts' shapes: nesting the small charts such a page holds gains
+        // more texels than rows of them do, for one packing of the taken
+        // options (a page relaxed to no padding holds tens of thousands of
+        // charts, where nesting costs most and gave nothing measured).
+        if let Some(r) = relaxed
+            && r.padding > 0
+            && options.packing == Packing::Fast
+            && atlas.page_count <= 1
+        {
+            let o = uvunwrap::Options {
+                padding: r.padding,
+                min_chart_width: r.min_chart_width,
+                centre_charts: true,
+                packing: uvunwrap::Packing::Shape,
+                ..opts
+            };
+            let nested = generate(&o).map_err(|e| Error::Unwrap(e.to_string()))?;
+            if nested.page_count <= 1 && nested.texels_per_unit > atlas.texels_per_unit {
+                atlas = nested;
+            }
+        }
         if atlas.page_count > 1 {
             return Err(Error::Limit(format!(
                 "the {} charts cannot share one atlas page even without padding (they need {} pages); raise the resolution",
