@@ -495,7 +495,7 @@ fn seams_across_pages_are_stitched_to_a_shared_target_then_together() {
     // the one-sided stitch although the file is quantised and the pages
     // are not.
     assert!(
-        written < 0.006 && written < stitched,
+        written < 0.006 && written < 0.6 * stitched,
         "{stitched} -> {written}"
     );
 }
@@ -571,9 +571,9 @@ fn many_charts(n: usize) -> aobake::gltf::Scene {
 #[test]
 fn a_resolution_too_small_for_the_charts_relaxes_padding_with_a_warning() {
     // 300 charts: with padding 2 and charts at least 2 texels wide each
-    // takes 6 x 6 texels at the least (10,800 in all: the 4 x 4 its
-    // lookups read, and a texel around), with padding 1 and width 1 (charts
-    // on texel centres) 2 x 2 (1,200), without padding 1. A 64 x 64 page
+    // takes 6 x 6 texels at the least (10,800 in all), with padding 1 and
+    // width 1 or none 2 x 2 (1,200: packed by the texels lookups read, on
+    // texel centres), without padding 1. A 64 x 64 page
     // (4,096) holds them with padding 1 (and width 1, the first tried), a
     // 32 x 32 one (1,024) only without padding (and then without width,
     // which the ladder drops first), a 16 x 16 one (256) not at all.
@@ -613,8 +613,8 @@ fn a_resolution_too_small_for_the_charts_relaxes_padding_with_a_warning() {
     }
     // Fits as asked, but starved: at 96 (9,216 texels, 30 per chart)
     // padding 2 leaves each chart its minimum width of 2 texels or less
-    // (under `STARVED_UTILIZATION` of the page covered); padding 1, with
-    // the charts on texel centres, at least doubles the density.
+    // (under `STARVED_UTILIZATION` of the page covered); padding 1, packed
+    // by the texels lookups read, at least doubles the density.
     let b = bake(96).unwrap();
     let relaxed = b.atlas.relaxed.expect("relaxed");
     assert!(relaxed.starved && relaxed.padding == 1, "{relaxed:?}");

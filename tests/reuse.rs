@@ -464,13 +464,10 @@ fn an_edit_on_prevs_atlas_changes_only_the_texels_within_reach_of_it() {
 
 #[test]
 fn an_edit_rebakes_only_the_texels_it_can_change_with_the_bytes_of_rebaking_all() {
-    // The cube moved 0.3 along x on a 512 page, `--rebake texels`: the
+    // The cube moved 0.3 along x on a 256 page, `--rebake texels`: the
     // texels the edit can change are baked again, written over PREV's, and
     // the file is byte for byte a bake of every texel on the same atlas
-    // (`--rebake all`). (At 256, with charts packed by the texels their
-    // lookups read, the cube's charts lie closer to the floor's and the
-    // part no longer closes within 40% of the page: a whole-page bake,
-    // the same bytes.)
+    // (`--rebake all`).
     let dir = tempfile::tempdir().unwrap();
     let p = |name: &str| dir.path().join(name);
     let (before, after) = (p("before.glb"), p("after.glb"));
@@ -479,7 +476,7 @@ fn an_edit_rebakes_only_the_texels_it_can_change_with_the_bytes_of_rebaking_all(
     let run = |input: &Path, out: &Path, extra: &[&str]| -> Value {
         let report = out.with_extension("json");
         let mut args = vec![input.to_str().unwrap(), out.to_str().unwrap()];
-        args.extend_from_slice(&["--resolution", "512", "--max-distance", "1.0"]);
+        args.extend_from_slice(&["--resolution", "256", "--max-distance", "1.0"]);
         args.extend_from_slice(&["--report", report.to_str().unwrap()]);
         args.extend_from_slice(extra);
         let o = aobake(&args);
@@ -495,10 +492,9 @@ fn an_edit_rebakes_only_the_texels_it_can_change_with_the_bytes_of_rebaking_all(
     let baked = |r: &Value| r["reuse"]["texels_baked"].as_u64().unwrap();
     assert!(
         baked(&report) * 2 < baked(&all_report),
-        "{} of {} texels baked: {}",
+        "{} of {} texels baked",
         baked(&report),
-        baked(&all_report),
-        report["reuse"]
+        baked(&all_report)
     );
     assert!(std::fs::read(&out).unwrap() == std::fs::read(&all).unwrap());
 }
@@ -548,7 +544,7 @@ fn a_prev_that_cannot_be_read_or_is_out_is_an_error() {
 
 #[test]
 fn a_multi_page_edit_bakes_only_the_pages_it_reaches_with_the_bytes_of_rebaking_all() {
-    // The courtyard on 7 pages of 128 with seams across them; one bench
+    // The courtyard on 8 pages of 128 with seams across them; one bench
     // moved 0.3 along x. Pages that no ray of the edit reaches, and that
     // no seam ties to one it does, are PREV's; the output is byte for
     // byte `--rebake all`'s, which bakes every page.
@@ -599,10 +595,10 @@ fn a_multi_page_edit_bakes_only_the_pages_it_reaches_with_the_bytes_of_rebaking_
     assert_eq!(reuse["carried"], true, "{reuse}");
     let reused = reuse["pages_reused"].as_u64().unwrap();
     let pages = r["pages"].as_array().unwrap();
-    assert_eq!(pages.len(), 7);
+    assert_eq!(pages.len(), 8);
     assert!(reused >= 1, "{reuse}");
     let baked_pages = pages.iter().filter(|p| p["baked"] == true).count() as u64;
-    assert_eq!(baked_pages + reused, 7);
+    assert_eq!(baked_pages + reused, 8);
     let texels = full["texels"].as_u64().unwrap();
     let baked = reuse["texels_baked"].as_u64().unwrap();
     assert!(baked < texels, "{baked} of {texels}");

@@ -32,9 +32,7 @@ pub enum AtlasSize {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UnwrapOptions {
     pub size: AtlasSize,
-    /// Padding between charts: with `p >= 1`, no two charts share a texel a
-    /// bilinear lookup on them reads, and those texels lie `2 (p - 1)`
-    /// apart; with 0, charts' texels may touch.
+    /// Empty texels around each chart (charts are `2 * padding` apart).
     pub padding: u32,
     pub packing: Packing,
     /// Smallest chart width in texels (0: none); see
@@ -117,10 +115,11 @@ pub const NEST_BUDGET: f64 = 1.0e9;
 /// cost more texels than they give back, while a texel of padding keeps
 /// every lookup on its own chart (`docs/measurements/chart-count.md`,
 /// small pages). Only options smaller than those asked are tried. Each
-/// is packed with the charts' minima on texel centres
-/// (`uvunwrap::Options::centre_charts`): on a page of many small charts the
-/// texels it saves are worth more than the free texel beyond a chart's
-/// edge that the border fit uses, on a page of large ones they are not.
+/// is packed by the texels lookups read, the charts' minima on texel
+/// centres (`uvunwrap::Options::lookup_packing`): on a page of many small
+/// charts the texels it saves are worth more than the gutter and the free
+/// texel beyond a chart's edge that the border fit uses; on a page of
+/// large ones they are not (`docs/measurements/chart-count.md`).
 pub fn relaxed_options(padding: u32, min_chart_width: f32) -> Vec<Relaxed> {
     let width = min_chart_width.min(1.0);
     let mut options = [(padding.min(1), width), (padding.min(1), 0.0), (0, 0.0)]
@@ -408,7 +407,7 @@ fn relax(
         let o = uvunwrap::Options {
             padding: r.padding,
             min_chart_width: r.min_chart_width,
-            centre_charts: true,
+            lookup_packing: true,
             ..*opts
         };
         let rows = pack(&o)?;

@@ -118,9 +118,7 @@ pub enum UvSource {
 pub struct BakeSettings {
     #[cfg_attr(feature = "cli", command(flatten))]
     pub size: AtlasSize,
-    /// Padding between charts: with P >= 1 no two charts share a texel that
-    /// bilinear lookups on them read, and those texels lie 2 (P - 1) apart;
-    /// with 0 lookups at chart edges may blend neighbouring charts
+    /// Empty texels around each chart
     #[cfg_attr(feature = "cli", arg(long, value_name = "P", default_value_t = Self::DEFAULT.padding))]
     pub padding: u32,
     /// Smallest chart width in texels: a generated chart narrower than this

@@ -237,13 +237,10 @@ pub struct Options {
     /// Texel density and page size. Default [`Density::Auto`] with 1024-texel
     /// pages.
     pub density: Density,
-    /// Texels between charts, to avoid bleeding when filtering or
-    /// generating mipmaps. With `padding >= 1`, the texels a bilinear lookup
-    /// on a chart reads are the chart's alone, at least `2 × (padding - 1)`
-    /// texels from any other chart's and `padding - 1` from the page edges
-    /// (aobake's patch, PATCHES.md; the published crate kept the texels the
-    /// chart touches `2 × padding` apart). With 0, charts' texels may touch.
-    /// Default `2`.
+    /// Empty texels around each chart, to avoid bleeding when filtering or
+    /// generating mipmaps: charts are at least `2 × padding` texels apart and
+    /// `padding` texels from the page edges (with [`Options::lookup_packing`],
+    /// the texels lookups on them read are). Default `2`.
     pub padding: u32,
     /// Allow rotating charts by multiples of 90° during packing. Rotations
     /// never mirror. Default `true`.
@@ -268,14 +265,17 @@ pub struct Options {
     /// then once more with it. Must be finite and `>= 0`. Default `0`.
     /// (Added by aobake's vendored copy.)
     pub min_chart_width: f32,
-    /// With padding, place each chart's minimum corner on a texel centre
-    /// rather than a texel corner: a bilinear lookup then reads no texel
-    /// before it, which saves half a texel per chart and axis on average,
-    /// for a page of many small charts a good share of its texels. A chart
-    /// edge on a texel centre leaves no free texel beyond it for a fit of
-    /// the edge's lookups, so on a page of large charts it costs more than
-    /// it gives. Default `false`. (Added by aobake's vendored copy.)
-    pub centre_charts: bool,
+    /// With padding, pack each chart by the texels a bilinear lookup on it
+    /// reads (weight over 1e-3) dilated by `padding - 1`, rather than by
+    /// the texels it touches dilated by `padding`, and place its minimum
+    /// corner on a texel centre, so that a lookup reads no texel before it:
+    /// with padding 1 no texel a lookup reads is shared by two charts, and
+    /// a chart takes about a texel less per axis, for a page of many small
+    /// charts a good share of its texels. A chart edge on a texel centre
+    /// leaves no free texel beyond it for a fit of the edge's lookups, so
+    /// on a page of large charts it costs more than it gives. Default
+    /// `false`. (Added by aobake's vendored copy.)
+    pub lookup_packing: bool,
 }
 
 /// How charts are arranged in the atlas.
@@ -309,7 +309,7 @@ impl Default for Options {
             max_chart_size: 0,
             block_align: false,
             min_chart_width: 0.0,
-            centre_charts: false,
+            lookup_packing: false,
         }
     }
 }

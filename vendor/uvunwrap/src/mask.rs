@@ -171,10 +171,10 @@ pub(crate) fn chart_masks(
     size: V2,
     s: f64,
     padding: u32,
-    centred: bool,
+    lookup: bool,
     all_rotations: bool,
 ) -> ChartMasks {
-    let m0 = Mask::from_bits(&rasterize_chart(uvs, tris, size, s, padding, centred));
+    let m0 = Mask::from_bits(&rasterize_chart(uvs, tris, size, s, padding, lookup));
     let rot = if all_rotations {
         let m1 = m0.rotate90();
         let (m2, m3) = (m0.rotate180(), m1.rotate180());

@@ -57,8 +57,8 @@ pub(crate) struct Packer<'a> {
     pub charts: &'a [ChartGeom<'a>],
     pub tiles: &'a [TileSpec<'a>],
     pub padding: u32,
-    /// Charts' minima on texel centres ([`crate::Options::centre_charts`]).
-    pub centred: bool,
+    /// Charts' minima on texel centres ([`crate::Options::lookup_packing`]).
+    pub lookup: bool,
     pub allow_rotation: bool,
     pub method: Packing,
     /// Largest chart side in texels (0: no limit); bigger charts are scaled down.
@@ -202,7 +202,7 @@ impl Packer<'_> {
                         c.size,
                         chart_density(c.size, s, self.max_chart_size),
                         self.padding,
-                        self.centred,
+                        self.lookup,
                         self.allow_rotation,
                     );
                     if b > 1 {
@@ -227,7 +227,7 @@ impl Packer<'_> {
                         c.size,
                         s,
                         self.padding,
-                        self.centred,
+                        self.lookup,
                     ))
                     .oriented(self.allow_rotation)
                     .downsample(b)

@@ -256,7 +256,7 @@ fn pack_meshes(
         charts: &direct,
         tiles: &tiles,
         padding: options.padding,
-        centred: options.centre_charts,
+        lookup: options.lookup_packing,
         allow_rotation: options.allow_rotation,
         method: options.packing,
         max_chart_size: options.max_chart_size,
@@ -369,7 +369,7 @@ fn place_chart(
     // The chart as it lies in its padded bitmap, which the packer placed
     // rotated as a whole.
     let (pw, ph) = (cw + 2 * padding, ch + 2 * padding);
-    let off = raster::content_offset(padding, options.centre_charts);
+    let off = raster::content_offset(padding, options.lookup_packing);
     chart
         .uvs
         .iter()

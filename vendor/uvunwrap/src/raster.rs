@@ -118,13 +118,13 @@ pub(crate) const READ_WEIGHT: f64 = 1e-3;
 
 /// Where a chart's content (its UVs scaled to texels, minimum at the
 /// origin) starts in its padded bitmap, along both axes: `padding`, or
-/// with padding and `centred` half a texel less, so that the chart's
+/// with padding and `lookup` half a texel less, so that the chart's
 /// minimum lies on a texel centre. A bilinear lookup then reads no texel
 /// before it, and a chart `w` texels wide reads `ceil(w) + 1` texels along
 /// an axis, where from a texel edge it reads `floor(w + 0.5) + 2` (one
-/// more for half of all widths) ([`crate::Options::centre_charts`]).
-pub(crate) fn content_offset(padding: u32, centred: bool) -> f64 {
-    if padding > 0 && centred {
+/// more for half of all widths) ([`crate::Options::lookup_packing`]).
+pub(crate) fn content_offset(padding: u32, lookup: bool) -> f64 {
+    if padding > 0 && lookup {
         padding as f64 - 0.5
     } else {
         padding as f64
@@ -135,20 +135,21 @@ pub(crate) fn content_offset(padding: u32, centred: bool) -> f64 {
 /// density `s` into its padded bitmap, `padding` texels larger than its
 /// content box on every side, the content at [`content_offset`].
 ///
-/// With padding, the bitmap holds every texel a bilinear lookup on the
-/// chart reads (its centre within a texel of the chart along both axes)
-/// with a weight over `READ_WEIGHT`, dilated by `padding - 1`: two charts
-/// whose bitmaps do not overlap never share a texel a lookup reads, and
-/// with padding `p` lie `2 (p - 1)` texels apart beyond them. Without
-/// padding, every texel the chart's triangles touch (conservative), so
-/// lookups at chart edges may read a neighbour's texels.
+/// The bitmap holds every texel the chart's triangles touch
+/// (conservative), dilated by `padding`. With `lookup` and padding
+/// ([`crate::Options::lookup_packing`]), it holds instead every texel a
+/// bilinear lookup on the chart reads (its centre within a texel of the
+/// chart along both axes) with a weight over `READ_WEIGHT`, dilated by
+/// `padding - 1`: two charts whose bitmaps do not overlap never share a
+/// texel a lookup reads, and with padding `p` those lie `2 (p - 1)` texels
+/// apart.
 pub(crate) fn rasterize_chart(
     uvs: &[V2],
     tris: &[[u32; 3]],
     size: V2,
     s: f64,
     padding: u32,
-    centred: bool,
+    lookup: bool,
 ) -> Bits {
     let (cw, ch) = content_size(size, s);
     let (w, h) = (
@@ -156,7 +157,7 @@ pub(crate) fn rasterize_chart(
         ch.saturating_add(padding.saturating_mul(2)),
     );
     let mut bits = Bits::new(w, h);
-    let off = content_offset(padding, centred);
+    let off = content_offset(padding, lookup);
     // Grow each triangle slightly so f32 rounding of the final UVs can never
     // move a triangle outside its mask.
     let eps = 1e-3;
@@ -164,7 +165,7 @@ pub(crate) fn rasterize_chart(
     // in the bitmap: with padding, the half texel a lookup reaches (its
     // centre within a texel), less the margin where its weight is at most
     // `READ_WEIGHT` and the rounding allowance.
-    let reach = if padding > 0 {
+    let reach = if padding > 0 && lookup {
         0.5 - READ_WEIGHT - eps
     } else {
         0.0
@@ -193,7 +194,7 @@ pub(crate) fn rasterize_chart(
             }
         }
     }
-    dilate(&bits, padding.saturating_sub(1))
+    dilate(&bits, if lookup { padding.saturating_sub(1) } else { padding })
 }
 
 /// X range of a triangle clipped to the horizontal slab `y0 <= y <= y1`.
