@@ -100,8 +100,9 @@ pub const STARVED_GAIN: f64 = 2.0;
 /// Charts times page texels up to which a relaxed page is also packed by
 /// the charts' shapes: the shape packer searches the page for each chart,
 /// so its time grows with both. The flight helmet at 256 (3,277 charts,
-/// 2.1e8) nests in about 3 s more than rows on 2 threads; the dense city
-/// diorama at 1024 (27,742 charts, 2.9e10) took 372 s against about 20.
+/// 2.1e8) nests in about 2 s more than rows on 2 threads; the dense city
+/// diorama at 1024 (27,742 charts, 2.9e10) took 372 s to nest against 51 s
+/// in rows (both beside another job).
 pub const NEST_BUDGET: f64 = 1.0e9;
 
 /// The options tried, in order, when the charts of a `--resolution` atlas
@@ -390,7 +391,8 @@ pub fn existing(meshes: &[ReceiverMesh], uvs: Vec<Vec<[f32; 2]>>, resolution: u3
 /// holds them starved (under [`STARVED_UTILIZATION`]), the next of
 /// [`relaxed_options`], taken where the charts did not fit, or where it
 /// multiplies the texel density by at least [`STARVED_GAIN`]. Each rung
-/// is packed with the charts on texel centres and, where it keeps a texel
+/// is packed by the texels lookups read, the charts on texel centres
+/// (`uvunwrap::Options::lookup_packing`), and, where it keeps a texel
 /// of padding, once more by the charts' shapes, the denser taken: nesting
 /// the small charts such a page holds gains more than rows of them do,
 /// where the nesting's search stays within [`NEST_BUDGET`] (a page

@@ -57,7 +57,8 @@ pub(crate) struct Packer<'a> {
     pub charts: &'a [ChartGeom<'a>],
     pub tiles: &'a [TileSpec<'a>],
     pub padding: u32,
-    /// Charts' minima on texel centres ([`crate::Options::lookup_packing`]).
+    /// Charts packed by the texels lookups read, their minima on texel
+    /// centres ([`crate::Options::lookup_packing`]).
     pub lookup: bool,
     pub allow_rotation: bool,
     pub method: Packing,
@@ -417,9 +418,9 @@ fn round_candidates(lo: f64, hi: f64, prediction: Option<f64>) -> Vec<f64> {
             let (a, b) = ((s / PREDICTION_WINDOW).max(lo), (s * PREDICTION_WINDOW).min(hi));
             let mut c = inner(a, b);
             // The prediction itself replaces the candidate nearest it.
-            if let Some(near) = (0..c.len())
-                .min_by(|&i, &j| (c[i] / s).ln().abs().total_cmp(&(c[j] / s).ln().abs()))
-            {
+            if let Some(near) = (0..c.len()).min_by(|&i, &j| {
+                (c[i] / s).ln().abs().total_cmp(&(c[j] / s).ln().abs())
+            }) {
                 c[near] = s;
             }
             c.sort_by(f64::total_cmp);
