@@ -301,8 +301,8 @@ pub(crate) fn unwrap_with_progress(
     // A `--resolution` atlas is one page: where the charts need more, or
     // fit but starve it, less padding and narrower charts before a refusal.
     let mut relaxed = None;
-    if matches!(options.size, AtlasSize::Resolution(_)) {
-        (atlas, relaxed) = relax(atlas, options, &opts, &generate)?;
+    if let AtlasSize::Resolution(resolution) = options.size {
+        (atlas, relaxed) = relax(atlas, resolution, options, &opts, &generate)?;
         if atlas.page_count > 1 {
             return Err(Error::Limit(format!(
                 "the {} charts cannot share one atlas page even without padding (they need {} pages); raise the resolution",
@@ -387,7 +387,8 @@ pub fn existing(meshes: &[ReceiverMesh], uvs: Vec<Vec<[f32; 2]>>, resolution: u3
     }
 }
 
-/// The `--resolution` ladder: while the page does not hold the charts, or
+/// The ladder of a `--resolution` page `resolution` texels square: while
+/// the page does not hold the charts, or
 /// holds them starved (under [`STARVED_UTILIZATION`]), the next of
 /// [`relaxed_options`], taken where the charts did not fit, or where it
 /// multiplies the texel density by at least [`STARVED_GAIN`]. Each rung
@@ -400,11 +401,13 @@ pub fn existing(meshes: &[ReceiverMesh], uvs: Vec<Vec<[f32; 2]>>, resolution: u3
 /// costs most and gave nothing measured).
 fn relax(
     mut atlas: uvunwrap::Atlas,
+    resolution: u32,
     options: &UnwrapOptions,
     opts: &uvunwrap::Options,
     generate: &dyn Fn(&uvunwrap::Options) -> std::result::Result<uvunwrap::Atlas, uvunwrap::Error>,
 ) -> Result<(uvunwrap::Atlas, Option<Relaxed>)> {
     let pack = |o: &uvunwrap::Options| generate(o).map_err(|e| Error::Unwrap(e.to_string()));
+    let page = resolution as f64 * resolution as f64;
     let pack_rung = |r: &Relaxed| -> Result<uvunwrap::Atlas> {
         let o = uvunwrap::Options {
             padding: r.padding,
@@ -413,10 +416,6 @@ fn relax(
             ..*opts
         };
         let rows = pack(&o)?;
-        let page = match options.size {
-            AtlasSize::Resolution(r) => r as f64 * r as f64,
-            AtlasSize::TexelDensity { .. } => f64::INFINITY,
-        };
         if r.padding == 0
             || options.packing != Packing::Fast
             || rows.page_count > 1

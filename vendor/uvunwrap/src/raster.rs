@@ -157,6 +157,8 @@ pub(crate) fn rasterize_chart(
         ch.saturating_add(padding.saturating_mul(2)),
     );
     let mut bits = Bits::new(w, h);
+    // (Without padding, lookup packing changes nothing.)
+    let lookup = lookup && padding > 0;
     let off = content_offset(padding, lookup);
     // Grow each triangle slightly so f32 rounding of the final UVs can never
     // move a triangle outside its mask.
@@ -165,7 +167,7 @@ pub(crate) fn rasterize_chart(
     // in the bitmap: with padding, the half texel a lookup reaches (its
     // centre within a texel), less the margin where its weight is at most
     // `READ_WEIGHT` and the rounding allowance.
-    let reach = if padding > 0 && lookup {
+    let reach = if lookup {
         0.5 - READ_WEIGHT - eps
     } else {
         0.0
@@ -194,7 +196,7 @@ pub(crate) fn rasterize_chart(
             }
         }
     }
-    dilate(&bits, if lookup { padding.saturating_sub(1) } else { padding })
+    dilate(&bits, if lookup { padding - 1 } else { padding })
 }
 
 /// X range of a triangle clipped to the horizontal slab `y0 <= y <= y1`.
