@@ -5,15 +5,16 @@
 //! 2^17 rays traced in parallel as a bake's workers cast them, timed after
 //! a warm-up. The GPU's rate is its own (every batch waits for a dispatch
 //! of its own); a bake's rate, the GPU with the CPU's threads tracing
-//! beside it while every dispatch is in flight, is printed as "shared";
-//! and the GPU's occlusion rate with the rays by direction instead of in
-//! the batch's order (trace/gpu/order.rs), an order yet to be measured on
-//! a GPU.
+//! beside it while every dispatch is in flight, is printed as "shared".
+//! Per GPU run it prints where the time went per dispatch: the host's
+//! stages (pack, upload and submit, wait, read, settle), the kernel's own
+//! time on the device where the adapter has timestamp queries, and the
+//! share of rays the GPU was unsure of (traced again on the CPU).
 //!
 //!     cargo run --release --features gpu --example gpu_rays -- SCENE.glb
-//!         [--resolution 1024] [--rays 2000000] [--hardware]
+//!         [--resolution 1024] [--rays 2000000] [--batch 131072] [--hardware]
 //!
-//! Prints the adapter, both rates (Mrays/s) and how many answers differ;
+//! Prints the adapter, the rates (Mrays/s) and how many answers differ;
 //! `--hardware` fails unless the adapter is a hardware GPU (not lavapipe).
 //! Rays exactly on a triangle's edge or at the max distance may round
 //! otherwise; the rest agree.
@@ -32,18 +33,18 @@ use std::time::Instant;
 /// Rays per texel, as a Monte Carlo bake's first ones.
 const PER_TEXEL: u32 = 16;
 
-/// Rays to a batch, as a bake's workers cast them (a few thousand
-/// receivers' rays each), the batches traced in parallel.
+/// Rays to a batch by default, as a bake's workers cast them (a few
+/// thousand receivers' rays each), the batches traced in parallel.
 const BATCH: usize = 1 << 17;
 
-/// Seconds of `tracer` answering `rays` as `Q` in batches of [`BATCH`]
+/// Seconds of `tracer` answering `rays` as `Q` in batches of `size`
 /// traced in parallel (the second of two runs), and the answers in order.
-fn timed<Q: Query>(tracer: &Tracer, rays: &RayBatch) -> (f64, Vec<Q::Answer>) {
+fn timed<Q: Query>(tracer: &Tracer, rays: &RayBatch, size: usize) -> (f64, Vec<Q::Answer>) {
     let batches: Vec<RayBatch> = (0..rays.len())
-        .step_by(BATCH)
+        .step_by(size)
         .map(|start| {
             let mut batch = RayBatch::new();
-            for i in start..(start + BATCH).min(rays.len()) {
+            for i in start..(start + size).min(rays.len()) {
                 if rays.is_blocked(i) {
                     batch.push_blocked(rays.directions()[i]);
                 } else {
@@ -64,9 +65,52 @@ fn timed<Q: Query>(tracer: &Tracer, rays: &RayBatch) -> (f64, Vec<Q::Answer>) {
             .collect()
     };
     let _ = trace();
+    tracer.reset_gpu_times();
     let t = Instant::now();
     let answers = trace();
     (t.elapsed().as_secs_f64(), answers.concat())
+}
+
+/// Where `tracer`'s GPU time went in its last timed run, per dispatch
+/// and per ray: the host's stages (pack, upload, submit, wait, read,
+/// settle), the kernel on the device where timestamps are there, and the
+/// share of rays traced again on the CPU. The host's own time per ray is
+/// pack, upload, read and settle: the submission and the wait are the
+/// device's (a software adapter runs the kernel in the submission).
+fn print_stages(what: &str, tracer: &Tracer) {
+    let Some(t) = tracer.gpu_dispatch_times() else {
+        return;
+    };
+    let rays = t.rays.max(1) as f64;
+    let per_ray = |s: f64| s * 1e9 / rays;
+    let per_dispatch = |s: f64| s * 1e3 / t.dispatches.max(1) as f64;
+    let host = t.pack_s + t.upload_s + t.read_s + t.settle_s;
+    let kernel = t.kernel_s.map_or("no timestamps".into(), |k| {
+        format!(
+            "{:.3} ms, {:.2} ns/ray ({:.0} Mrays/s on the device)",
+            per_dispatch(k),
+            per_ray(k),
+            rays / k / 1e6
+        )
+    });
+    println!(
+        "{what}: {} dispatches of {:.0} rays; per dispatch (ms) pack {:.3}, upload {:.3}, submit {:.3}, wait {:.3}, read {:.3}, settle {:.3}; kernel {kernel}; host {:.2} ns per GPU-answered ray (pack {:.2}, upload {:.2}, read {:.2}, settle {:.2}); {} rays ({:.4}%) traced again on the CPU",
+        t.dispatches,
+        rays / t.dispatches.max(1) as f64,
+        per_dispatch(t.pack_s),
+        per_dispatch(t.upload_s),
+        per_dispatch(t.submit_s),
+        per_dispatch(t.wait_s),
+        per_dispatch(t.read_s),
+        per_dispatch(t.settle_s),
+        per_ray(host),
+        per_ray(t.pack_s),
+        per_ray(t.upload_s),
+        per_ray(t.read_s),
+        per_ray(t.settle_s),
+        t.retraced,
+        100.0 * t.retraced as f64 / rays
+    );
 }
 
 fn main() {
@@ -78,6 +122,7 @@ fn main() {
     };
     let path = args.first().expect("SCENE.glb");
     let (resolution, most) = (flag("--resolution", 1024), flag("--rays", 2_000_000));
+    let size = flag("--batch", BATCH).max(1);
     let scene = aobake::gltf::load(std::path::Path::new(path)).expect("load");
     let s = BakeSettings {
         size: AtlasSize::Resolution(resolution as u32),
@@ -116,16 +161,34 @@ fn main() {
     on_gpu.attach_gpu(gpu);
     let mut shared = Tracer::with_sides(occluders, sides);
     shared.attach_gpu(start());
-    // The GPU alone with the rays by direction rather than in the batch's
-    // order (receiver by receiver): trace/gpu/order.rs.
-    let mut by_direction = Tracer::with_sides(occluders, sides);
-    let mut gpu = start();
-    gpu.exclusive();
-    gpu.order_by_direction();
-    by_direction.attach_gpu(gpu);
     let n = rays.len();
+    // The rays the GPU is unsure of (traced again on the CPU), by where
+    // the CPU's closest hit lies: none (a candidate only within the
+    // margins), or at the ray's very start (an origin on another surface).
+    {
+        let gpu = start();
+        let mut answers = Vec::new();
+        gpu.occlusion(&rays, &mut answers).expect("GPU");
+        let mut bins = [0usize; 6];
+        for i in (0..n).filter(|&i| answers[i] == aobake::trace::gpu::GpuAnswer::Unsure) {
+            let (o, d, t) = (rays.origins()[i], rays.directions()[i], rays.t_max()[i]);
+            let bin = match cpu.closest_hit(o, d, t) {
+                None => 0,
+                Some(h) if h < 1e-7 => 1,
+                Some(h) if h < 1e-5 => 2,
+                Some(h) if h < 1e-3 => 3,
+                Some(h) if h < 1e-1 => 4,
+                Some(_) => 5,
+            };
+            bins[bin] += 1;
+        }
+        println!(
+            "occlusion rays the GPU is unsure of, by the CPU's closest hit: none {}, below 1e-7 {}, 1e-7..1e-5 {}, 1e-5..1e-3 {}, 1e-3..0.1 {}, beyond {}",
+            bins[0], bins[1], bins[2], bins[3], bins[4], bins[5]
+        );
+    }
     println!(
-        "{path}: {} triangles, {n} rays ({} blocked) from {} of {} texels; GPU adapter {:?}{}; CPU {} threads",
+        "{path}: {} triangles, {n} rays ({} blocked) from {} of {} texels, batches of {size}; GPU adapter {:?}{}; CPU {} threads",
         occluders.len(),
         (0..n).filter(|&i| rays.is_blocked(i)).count(),
         receivers.len().div_ceil(stride),
@@ -135,11 +198,10 @@ fn main() {
         rayon::current_num_threads()
     );
     let rate = |secs: f64| n as f64 / secs / 1e6;
-    let (cpu_s, cpu_occluded) = timed::<Occlusion>(&cpu, &rays);
-    let (gpu_s, gpu_occluded) = timed::<Occlusion>(&on_gpu, &rays);
-    let (shared_s, shared_occluded) = timed::<Occlusion>(&shared, &rays);
-    let (by_direction_s, by_direction_occluded) = timed::<Occlusion>(&by_direction, &rays);
-    let in_order_s = gpu_s;
+    let (cpu_s, cpu_occluded) = timed::<Occlusion>(&cpu, &rays, size);
+    let (gpu_s, gpu_occluded) = timed::<Occlusion>(&on_gpu, &rays, size);
+    print_stages("occlusion, GPU alone", &on_gpu);
+    let (shared_s, shared_occluded) = timed::<Occlusion>(&shared, &rays, size);
     let differing_occluded = |answers: &[bool]| {
         (cpu_occluded.iter().zip(answers))
             .filter(|(a, b)| a != b)
@@ -160,9 +222,10 @@ fn main() {
         100.0 * differ as f64 / n as f64,
         differing_occluded(&shared_occluded)
     );
-    let (cpu_s, cpu_hits) = timed::<Closest>(&cpu, &rays);
-    let (gpu_s, gpu_hits) = timed::<Closest>(&on_gpu, &rays);
-    let (shared_s, shared_hits) = timed::<Closest>(&shared, &rays);
+    let (cpu_s, cpu_hits) = timed::<Closest>(&cpu, &rays, size);
+    let (gpu_s, gpu_hits) = timed::<Closest>(&on_gpu, &rays, size);
+    print_stages("closest hits, GPU alone", &on_gpu);
+    let (shared_s, shared_hits) = timed::<Closest>(&shared, &rays, size);
     // Compared as a pass reads them: the distance, the triangle's normal
     // and face (a triangle split into several leaves has several indices).
     let t_max = level.max_distance;
@@ -205,21 +268,13 @@ fn main() {
         100.0 * differ as f64 / n as f64,
         differing(&shared_hits)
     );
-    println!(
-        "occlusion on the GPU with the rays by direction: {:.2} Mrays/s ({:.2}x the rate in the batch's order); {} differ",
-        rate(by_direction_s),
-        in_order_s / by_direction_s,
-        differing_occluded(&by_direction_occluded)
-    );
     if let Some((gpu, cpu)) = shared.gpu_rays() {
         println!(
             "shared: {:.1}% of the rays traced on the GPU",
             100.0 * gpu as f64 / (gpu + cpu).max(1) as f64
         );
     }
-    let failed = [&on_gpu, &shared, &by_direction]
-        .into_iter()
-        .find_map(|t| t.gpu_failure());
+    let failed = [&on_gpu, &shared].into_iter().find_map(|t| t.gpu_failure());
     if let Some(failure) = failed {
         eprintln!("the GPU failed, the CPU answered the rest: {failure}");
         std::process::exit(1);

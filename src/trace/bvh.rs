@@ -198,6 +198,21 @@ impl Tracer {
         None
     }
 
+    /// With a GPU attached, where its time went per stage of its
+    /// dispatches, summed since it was attached or [`Tracer::reset_gpu_times`].
+    #[cfg(feature = "gpu")]
+    pub fn gpu_dispatch_times(&self) -> Option<super::gpu::DispatchTimes> {
+        self.gpu.as_ref().map(|g| g.dispatch_times())
+    }
+
+    /// Starts [`Tracer::gpu_dispatch_times`]'s sums afresh.
+    #[cfg(feature = "gpu")]
+    pub fn reset_gpu_times(&self) {
+        if let Some(g) = &self.gpu {
+            g.reset_dispatch_times()
+        }
+    }
+
     /// Why the GPU stopped answering, if a batch failed (the rest were
     /// traced here).
     pub fn gpu_failure(&self) -> Option<&str> {

@@ -10,8 +10,7 @@
 //! - `flatten`: obvhs's BVH2 as the shader's nodes and triangles.
 //! - `tracer`: [`GpuTracer`], the device, its pipelines and the buffers
 //!   of the dispatches in flight.
-//! - `order`: rays by direction, so that a subgroup's walk the same nodes
-//!   (an order for measuring on a GPU; a bake keeps the batch's).
+//! - `timing`: where a tracer's time goes, per stage of its dispatches.
 //! - `traverse.wgsl`: the traversal (a short stack, the nearer child first)
 //!   and the CPU's triangle test.
 //!
@@ -26,19 +25,21 @@
 //! [`Closest`]: super::Closest
 
 mod flatten;
-mod order;
+mod timing;
 mod tracer;
 
 pub use flatten::{FlatBvh, GpuNode, GpuTri, flatten};
-pub use tracer::{AUTO_SOFTWARE_VAR, GpuHit, GpuTracer, LOSE_AFTER_VAR, SHARE_VAR};
+pub use timing::DispatchTimes;
+pub use tracer::{AUTO_SOFTWARE_VAR, GpuAnswer, GpuHit, GpuTracer, LOSE_AFTER_VAR, SHARE_VAR};
 
 use super::{Hit, RayBatch};
 use crate::error::{Error, Result};
+use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Rays per dispatch: bounds the GPU memory a dispatch takes (32 bytes
-/// of ray, 8 of answer and 8 of its copy to read back each: 48 MiB)
-/// whatever the batch's size.
+/// of ray, at most 4 of answer and 4 of its copy to read back each:
+/// 40 MiB) whatever the batch's size.
 pub const RAYS_PER_DISPATCH: usize = 1 << 20;
 
 /// Threads per workgroup (`@workgroup_size` in traverse.wgsl).
@@ -128,6 +129,16 @@ impl Attached {
         self.tracer.adapter()
     }
 
+    /// The GPU tracer's [`DispatchTimes`] so far.
+    pub fn dispatch_times(&self) -> DispatchTimes {
+        self.tracer.dispatch_times()
+    }
+
+    /// Starts its sums afresh.
+    pub fn reset_dispatch_times(&self) {
+        self.tracer.reset_dispatch_times()
+    }
+
     /// The first failure, if a batch failed.
     pub fn failure(&self) -> Option<&str> {
         self.failure.get().map(String::as_str)
@@ -171,10 +182,9 @@ impl Attached {
 
     /// Answers the occlusion of rays `from..` of `rays` into `out` (one
     /// answer a ray from `from`) as `cpu` (the tracer this is attached to)
-    /// answers it, if the GPU has a dispatch free and has not failed. A ray
-    /// without a candidate is not occluded; one with a candidate the CPU's
-    /// test hits is; the rest (a candidate only within the margin) are
-    /// traced on the CPU.
+    /// answers it, if the GPU has a dispatch free and has not failed. The
+    /// GPU's sure answers stand; the rays it is unsure of (a candidate
+    /// within rounding of the test) are traced here, in parallel.
     pub(crate) fn occluded_from(
         &self,
         cpu: &super::Tracer,
@@ -184,22 +194,33 @@ impl Attached {
     ) -> Offer {
         self.offer(out.len(), || {
             let mut found = Vec::new();
-            if !self
-                .tracer
-                .occlusion_candidates_from(rays, from, false, &mut found)?
-            {
+            if !self.tracer.occlusion_from(rays, from, false, &mut found)? {
                 return Ok(false);
             }
-            for ((i, &candidate), out) in (from..).zip(&found).zip(out) {
-                *out = rays.is_blocked(i)
-                    || candidate.is_some_and(|k| {
-                        let (o, d, t_max) =
-                            (rays.origins()[i], rays.directions()[i], rays.t_max()[i]);
-                        cpu.retest(self.to_cpu[k as usize], o, d, t_max, t_max)
-                            .is_some()
-                            || cpu.occluded(o, d, t_max)
-                    });
-            }
+            let settling = std::time::Instant::now();
+            let retraced: usize = (out.par_chunks_mut(SETTLE_PIECE))
+                .zip(found.par_chunks(SETTLE_PIECE))
+                .enumerate()
+                .map(|(k, (out, found))| {
+                    let mut retraced = 0;
+                    let first = from + k * SETTLE_PIECE;
+                    for ((i, &answer), out) in (first..).zip(found).zip(out) {
+                        *out = rays.is_blocked(i)
+                            || match answer {
+                                GpuAnswer::Miss => false,
+                                GpuAnswer::Hit => true,
+                                GpuAnswer::Unsure => {
+                                    retraced += 1;
+                                    let (o, d) = (rays.origins()[i], rays.directions()[i]);
+                                    cpu.occluded(o, d, rays.t_max()[i])
+                                }
+                            };
+                    }
+                    retraced
+                })
+                .sum();
+            self.tracer.timing.retraced(retraced);
+            self.tracer.timing.add(timing::Stage::Settle, settling);
             Ok(true)
         })
     }
@@ -207,11 +228,10 @@ impl Attached {
     /// Answers the closest hits of rays `from..` of `rays` into `out` as
     /// `cpu` (the tracer this is attached to) answers them, if the GPU has
     /// a dispatch free and has not failed. A ray without a candidate hits
-    /// nothing; the nearest candidate, where the CPU's test hits it and no
-    /// other occluder's is within rounding of it, is the hit, its distance
-    /// the CPU's test's; the rest (a near tie, which rounding or the CPU's
-    /// traversal order decides, or a candidate only within the margin)
-    /// are traced on the CPU.
+    /// nothing; a sure nearest candidate is the hit, its distance the CPU
+    /// test's (retested here); the rest (a near tie, which rounding or the
+    /// CPU's traversal order decides, or a candidate within rounding of the
+    /// test) are traced here. Settled in parallel.
     pub(crate) fn closest_from(
         &self,
         cpu: &super::Tracer,
@@ -221,27 +241,43 @@ impl Attached {
     ) -> Offer {
         self.offer(out.len(), || {
             let mut found = Vec::new();
-            if !self
-                .tracer
-                .closest_candidates_from(rays, from, false, &mut found)?
-            {
+            if !self.tracer.closest_from(rays, from, false, &mut found)? {
                 return Ok(false);
             }
-            for ((i, hit), out) in (from..).zip(&found).zip(out) {
-                *out = hit.and_then(|hit| {
-                    let (o, d) = (rays.origins()[i], rays.directions()[i]);
-                    let (t_max, depth) = (rays.t_max()[i], rays.depths()[i]);
-                    let triangle = self.to_cpu[hit.triangle as usize];
-                    match cpu.retest(triangle, o, d, t_max, depth) {
-                        Some(found) if hit.tie.is_none() => Some(found),
-                        _ => cpu.trace_closest(o, d, t_max, depth),
+            let settling = std::time::Instant::now();
+            let retraced: usize = (out.par_chunks_mut(SETTLE_PIECE))
+                .zip(found.par_chunks(SETTLE_PIECE))
+                .enumerate()
+                .map(|(k, (out, found))| {
+                    let mut retraced = 0;
+                    let first = from + k * SETTLE_PIECE;
+                    for ((i, hit), out) in (first..).zip(found).zip(out) {
+                        *out = hit.and_then(|hit| {
+                            let (o, d) = (rays.origins()[i], rays.directions()[i]);
+                            let (t_max, depth) = (rays.t_max()[i], rays.depths()[i]);
+                            let triangle = self.to_cpu[hit.triangle as usize];
+                            match cpu.retest(triangle, o, d, t_max, depth) {
+                                Some(found) if hit.sure => Some(found),
+                                _ => {
+                                    retraced += 1;
+                                    cpu.trace_closest(o, d, t_max, depth)
+                                }
+                            }
+                        });
                     }
-                });
-            }
+                    retraced
+                })
+                .sum();
+            self.tracer.timing.retraced(retraced);
+            self.tracer.timing.add(timing::Stage::Settle, settling);
             Ok(true)
         })
     }
 }
+
+/// Rays a worker settles at a time: a batch's answers are settled in
+/// parallel pieces of this many.
+const SETTLE_PIECE: usize = 8192;
 
 /// The first adapter `which` admits: hardware ones before software ones.
 fn pick_adapter(which: Adapters) -> Result<(wgpu::Adapter, AdapterName)> {

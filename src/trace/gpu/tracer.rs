@@ -2,49 +2,39 @@
 //! memory and answers batches of rays with the shaders of `traverse.wgsl`.
 //!
 //! In: bake-space occluder triangles, an adapter choice, then
-//! [`RayBatch`]es. Out: per ray, candidates (traverse.wgsl's margin test):
-//! a triangle that may occlude it, or the nearest candidate hit's triangle
-//! in the tree's leaf order ([`GpuTracer::primitives`] maps it back to the
-//! occluders) and a near tie's. Every triangle the CPU's test hits is a candidate; the caller
-//! settles them with that test ([`super::Attached`]).
+//! [`RayBatch`]es. Out: per ray, an occlusion answer ([`GpuAnswer`]: a
+//! sure hit, no candidate, or unsure) or the nearest candidate hit
+//! ([`GpuHit`]: its triangle in the tree's leaf order, which
+//! [`GpuTracer::primitives`] maps back to the occluders, and whether it is
+//! sure). The caller traces the rays the GPU is unsure of on the CPU and
+//! retests closest hits there for the CPU's distance ([`super::Attached`]).
 //!
-//! A batch goes in dispatches of at most [`RAYS_PER_DISPATCH`] rays, at
-//! most [`IN_FLIGHT`] at a time, each through a set of buffers kept from
-//! one dispatch to the next (grown to the largest dispatch seen, never past
-//! that bound): the GPU memory a bake takes is the tree plus those sets,
-//! whatever the batches' sizes. Workers' dispatches overlap each other's
-//! uploads and read-backs, and while the GPU traces, the other workers
-//! build and read their batches on the CPU.
+//! A batch goes in dispatches of at most [`RAYS_PER_DISPATCH`] rays
+//! (`dispatch`), at most [`IN_FLIGHT`] at a time, each through a set of
+//! buffers kept from one dispatch to the next (grown to the largest
+//! dispatch seen, never past that bound): the GPU memory a bake takes is
+//! the tree plus those sets, whatever the batches' sizes. Workers'
+//! dispatches overlap each other's uploads and read-backs, and while the
+//! GPU traces, the other workers build and read their batches on the CPU.
 
+use super::timing::{DispatchTimes, Stage, Timing};
 use super::{
-    AdapterName, Adapters, RAYS_PER_DISPATCH, STACK_DEPTH, WORKGROUP, flatten, order, pick_adapter,
+    AdapterName, Adapters, RAYS_PER_DISPATCH, STACK_DEPTH, WORKGROUP, flatten, pick_adapter,
 };
 use crate::error::{Error, Result};
 use crate::trace::RayBatch;
-use crate::trace::bvh::{Hit, shifted_ray};
 use glam::Vec3A;
-use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::AtomicU64;
 use std::sync::{Arc, Mutex};
 use wgpu::util::DeviceExt;
 
-/// Bytes of one ray as the shader reads it (`Ray` in traverse.wgsl).
-const RAY_BYTES: u64 = 32;
-/// Bytes of the largest answer (a closest hit: its triangle and a tie's).
-const ANSWER_BYTES: u64 = 8;
+mod dispatch;
 
-/// How long a dispatch may take before the GPU counts as failed (hung):
-/// far beyond what 2^20 rays take even on a software adapter, so only a
-/// GPU that stopped answering reaches it, and the bake goes on without it
-/// instead of waiting forever.
-const DISPATCH_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(120);
+use dispatch::{Slots, Staging};
 
 /// Dispatches in flight at once, each with its own buffers: while one
 /// worker's rays are uploaded or its answers read back, others' run.
 const IN_FLIGHT: usize = 4;
-
-/// How often a dispatch in flight asks wgpu whether it is done.
-const POLL_INTERVAL: std::time::Duration = std::time::Duration::from_micros(50);
 
 /// No triangle (`NONE` in traverse.wgsl).
 const NONE: u32 = u32::MAX;
@@ -54,11 +44,26 @@ const NONE: u32 = u32::MAX;
 pub struct GpuHit {
     /// The triangle, in the tree's leaf order ([`GpuTracer::primitives`]).
     pub triangle: u32,
-    /// Another occluder's candidate within rounding of its distance,
-    /// below the cut: which one is "the" hit is then rounding's or the
-    /// traversal order's choice.
-    pub tie: Option<u32>,
+    /// Whether it is the CPU's hit: the CPU's test surely hits it, and no
+    /// other occluder's candidate is within rounding of its distance below
+    /// the cut (which one is "the" hit is then rounding's or the traversal
+    /// order's choice). The host still retests it for the CPU's distance.
+    pub sure: bool,
 }
+
+/// An occlusion answer from the GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GpuAnswer {
+    /// No triangle is a candidate: the CPU finds the ray unoccluded.
+    Miss,
+    /// A triangle the CPU's test surely hits: occluded.
+    Hit,
+    /// A candidate only within rounding of the test: the CPU decides.
+    Unsure,
+}
+
+/// The closest hit's answer flag (`UNSURE_BIT` in traverse.wgsl).
+const UNSURE_BIT: u32 = 1 << 31;
 
 /// For tests of a device lost mid-bake: the tracer destroys its own
 /// device after this many dispatches, which wgpu reports as a lost device.
@@ -91,6 +96,10 @@ pub struct GpuTracer {
     slots: Vec<Mutex<Option<Slots>>>,
     /// The set the next dispatch tries first.
     next_slot: std::sync::atomic::AtomicUsize,
+    /// Host-visible buffers mapped for writing, which dispatches' rays
+    /// are packed straight into (no copy on the host): a buffer goes back
+    /// here, mapped again, once its dispatch is done.
+    staging: Arc<Mutex<Vec<Staging>>>,
     /// The first error wgpu reported outside a call's result (a refused
     /// shader, a validation error), instead of its default of panicking.
     errors: Arc<Mutex<Option<String>>>,
@@ -104,18 +113,11 @@ pub struct GpuTracer {
     refuse_every: Option<u64>,
     /// Every batch waits for a dispatch ([`GpuTracer::exclusive`]).
     exclusive: bool,
-    /// Rays go to the GPU by direction ([`GpuTracer::order_by_direction`]).
-    by_direction: bool,
-}
-
-/// One dispatch's buffers, for up to `capacity` rays.
-struct Slots {
-    capacity: usize,
-    rays: wgpu::Buffer,
-    answers: wgpu::Buffer,
-    readback: wgpu::Buffer,
-    params: wgpu::Buffer,
-    group: wgpu::BindGroup,
+    /// Where the time goes, per stage.
+    pub(crate) timing: Timing,
+    /// Nanoseconds per timestamp tick, where the adapter has timestamp
+    /// queries (each dispatch's kernel is then timed on the device).
+    tick_ns: Option<f64>,
 }
 
 /// Which shader a dispatch runs.
@@ -126,10 +128,12 @@ enum Kind {
 }
 
 impl Kind {
-    fn answer_words(self) -> usize {
+    /// Words of the answers of `rays` rays: two bits a ray for
+    /// occlusion, a word for a closest hit.
+    fn answer_words(self, rays: usize) -> usize {
         match self {
-            Kind::Occluded => 1,
-            Kind::Closest => 2,
+            Kind::Occluded => rays.div_ceil(16),
+            Kind::Closest => rays,
         }
     }
 }
@@ -149,8 +153,14 @@ impl GpuTracer {
             )));
         }
         let (adapter, name) = pick_adapter(which)?;
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("aobake"),
+            required_features: if timestamps {
+                wgpu::Features::TIMESTAMP_QUERY
+            } else {
+                wgpu::Features::empty()
+            },
             required_limits: wgpu::Limits {
                 max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
                 max_buffer_size: adapter.limits().max_buffer_size,
@@ -244,7 +254,6 @@ impl GpuTracer {
         let (lose_after, refuse_every) = (var(LOSE_AFTER_VAR), var(SHARE_VAR));
         let tracer = GpuTracer {
             device,
-            queue,
             occluded,
             closest,
             layout,
@@ -255,6 +264,7 @@ impl GpuTracer {
             adapter: name,
             slots: (0..IN_FLIGHT).map(|_| Mutex::new(None)).collect(),
             next_slot: Default::default(),
+            staging: Arc::new(Mutex::new(Vec::new())),
             errors,
             lost,
             dispatches: AtomicU64::new(0),
@@ -262,7 +272,9 @@ impl GpuTracer {
             attempts: AtomicU64::new(0),
             refuse_every: refuse_every.map(|k: u64| k.max(1)),
             exclusive: false,
-            by_direction: false,
+            timing: Timing::default(),
+            tick_ns: timestamps.then(|| queue.get_timestamp_period() as f64),
+            queue,
         };
         tracer.check()?;
         Ok(Some(tracer))
@@ -306,201 +318,68 @@ impl GpuTracer {
         &self.primitives
     }
 
-    /// Per ray of `rays`, a triangle (leaf order) that may occlude it in
-    /// (0, t_max], `None` where none does (a blocked ray: `None`, the
-    /// caller answers it), into `out` (cleared first), in the batch's order.
-    /// Waits for a set of dispatch buffers when all are in flight.
-    pub fn occlusion_candidates(&self, rays: &RayBatch, out: &mut Vec<Option<u32>>) -> Result<()> {
+    /// Per ray of `rays`, whether anything is hit in (0, t_max] as the
+    /// CPU's test decides it ([`GpuAnswer`]; a blocked ray: `Miss`, the
+    /// caller answers it), into `out` (cleared first), in the batch's
+    /// order. Waits for a set of dispatch buffers when all are in flight.
+    pub fn occlusion(&self, rays: &RayBatch, out: &mut Vec<GpuAnswer>) -> Result<()> {
         out.clear();
-        self.occlusion_candidates_from(rays, 0, true, out)
-            .map(|_| ())
+        self.occlusion_from(rays, 0, true, out).map(|_| ())
     }
 
-    /// [`GpuTracer::occlusion_candidates`] of rays `from..` of `rays`,
-    /// appended to `out`; without `wait`, `Ok(false)` (nothing traced)
-    /// when every set of dispatch buffers is in flight.
-    pub fn occlusion_candidates_from(
+    /// [`GpuTracer::occlusion`] of rays `from..` of `rays`, appended to
+    /// `out`; without `wait`, `Ok(false)` (nothing traced) when every set
+    /// of dispatch buffers is in flight.
+    pub fn occlusion_from(
         &self,
         rays: &RayBatch,
         from: usize,
         wait: bool,
-        out: &mut Vec<Option<u32>>,
+        out: &mut Vec<GpuAnswer>,
     ) -> Result<bool> {
-        out.reserve(rays.len().saturating_sub(from));
-        self.batch(rays, from, Kind::Occluded, wait, |answers| {
-            out.extend(answers.iter().map(|&a| (a != NONE).then_some(a)))
-        })
+        let mut words = Vec::new();
+        if !self.batch(rays, from, Kind::Occluded, wait, &mut words)? {
+            return Ok(false);
+        }
+        let n = rays.len().saturating_sub(from);
+        out.extend((0..n).map(|i| match (words[i / 16] >> (2 * (i % 16))) & 3 {
+            0 => GpuAnswer::Miss,
+            1 => GpuAnswer::Hit,
+            _ => GpuAnswer::Unsure,
+        }));
+        Ok(true)
     }
 
     /// Per ray of `rays`, the nearest candidate hit in (0, t_max] cut at
     /// its depth ([`crate::trace::Tracer::trace_closest`]), `None` where no
     /// triangle is hit (a blocked ray: `None`), into `out` (cleared first).
     /// Waits for a set of dispatch buffers when all are in flight.
-    pub fn closest_candidates(&self, rays: &RayBatch, out: &mut Vec<Option<GpuHit>>) -> Result<()> {
+    pub fn closest(&self, rays: &RayBatch, out: &mut Vec<Option<GpuHit>>) -> Result<()> {
         out.clear();
-        self.closest_candidates_from(rays, 0, true, out).map(|_| ())
+        self.closest_from(rays, 0, true, out).map(|_| ())
     }
 
-    /// [`GpuTracer::closest_candidates`] of rays `from..` of `rays`,
-    /// appended to `out`; without `wait`, `Ok(false)` (nothing traced)
-    /// when every set of dispatch buffers is in flight.
-    pub fn closest_candidates_from(
+    /// [`GpuTracer::closest`] of rays `from..` of `rays`, appended to
+    /// `out`; without `wait`, `Ok(false)` (nothing traced) when every set
+    /// of dispatch buffers is in flight.
+    pub fn closest_from(
         &self,
         rays: &RayBatch,
         from: usize,
         wait: bool,
         out: &mut Vec<Option<GpuHit>>,
     ) -> Result<bool> {
-        out.reserve(rays.len().saturating_sub(from));
-        self.batch(rays, from, Kind::Closest, wait, |answers| {
-            out.extend(answers.chunks_exact(2).map(|a| {
-                (a[0] != NONE).then(|| GpuHit {
-                    triangle: a[0],
-                    tie: (a[1] != NONE).then_some(a[1]),
-                })
-            }))
-        })
-    }
-
-    /// Rays `from..` of `rays` in dispatches of at most
-    /// [`RAYS_PER_DISPATCH`] through one set of dispatch buffers, each
-    /// dispatch's answers handed to `read` in order. Without `wait`,
-    /// `Ok(false)` and nothing traced when no set is free.
-    fn batch(
-        &self,
-        rays: &RayBatch,
-        from: usize,
-        kind: Kind,
-        wait: bool,
-        mut read: impl FnMut(&[u32]),
-    ) -> Result<bool> {
-        let Some(mut slots) = self.free_slots(wait) else {
+        let mut words = Vec::new();
+        if !self.batch(rays, from, Kind::Closest, wait, &mut words)? {
             return Ok(false);
-        };
-        let most = rays.len().saturating_sub(from).min(RAYS_PER_DISPATCH);
-        let mut packed: Vec<[f32; 8]> = Vec::with_capacity(most);
-        let (mut order, mut answers) = (Vec::new(), Vec::new());
-        let words = kind.answer_words();
-        let mut start = from;
-        while start < rays.len() {
-            let end = (start + RAYS_PER_DISPATCH).min(rays.len());
-            packed.clear();
-            if !self.by_direction {
-                packed.par_extend((start..end).into_par_iter().map(|i| pack(rays, i, kind)));
-                self.dispatch(&mut slots, &packed, kind, &mut read)?;
-            } else {
-                // By direction on the GPU (order.rs), the answers put back
-                // in the batch's order.
-                order::by_direction(rays, start, end, &mut order);
-                packed.par_extend(order.par_iter().map(|&i| pack(rays, i as usize, kind)));
-                self.dispatch(&mut slots, &packed, kind, &mut |sorted: &[u32]| {
-                    order::put_back(&order, start, words, sorted, &mut answers);
-                    read(&answers)
-                })?;
-            }
-            start = end;
         }
+        out.extend(words.iter().map(|&a| {
+            (a != NONE).then_some(GpuHit {
+                triangle: a & !UNSURE_BIT,
+                sure: a & UNSURE_BIT == 0,
+            })
+        }));
         Ok(true)
-    }
-
-    /// One dispatch: uploads the rays, runs the shader, reads the answers
-    /// back into `read`.
-    fn dispatch(
-        &self,
-        slots: &mut Option<Slots>,
-        rays: &[[f32; 8]],
-        kind: Kind,
-        read: &mut impl FnMut(&[u32]),
-    ) -> Result<()> {
-        if self.lose_after == Some(self.dispatches.fetch_add(1, Ordering::Relaxed)) {
-            self.device.destroy();
-        }
-        self.check()?;
-        let n = rays.len();
-        if slots.as_ref().is_none_or(|s| s.capacity < n) {
-            *slots = Some(self.slots(n.next_power_of_two().min(RAYS_PER_DISPATCH)));
-        }
-        let s = slots.as_ref().expect("made above");
-        let queue = &self.queue;
-        queue.write_buffer(&s.rays, 0, bytemuck::cast_slice(rays));
-        queue.write_buffer(&s.params, 0, bytemuck::cast_slice(&[n as u32, 0, 0, 0]));
-        let bytes = (n * kind.answer_words() * 4) as u64;
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(match kind {
-                Kind::Occluded => &self.occluded,
-                Kind::Closest => &self.closest,
-            });
-            pass.set_bind_group(0, &s.group, &[]);
-            pass.dispatch_workgroups(n.div_ceil(WORKGROUP) as u32, 1, 1);
-        }
-        encoder.copy_buffer_to_buffer(&s.answers, 0, &s.readback, 0, bytes);
-        queue.submit([encoder.finish()]);
-        let slice = s.readback.slice(..bytes);
-        let (send, receive) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = send.send(r);
-        });
-        // What wgpu reported on its own (a lost device) says more than
-        // the failed call it caused.
-        let failed = |e: &dyn std::fmt::Display| match self.check() {
-            Err(reported) => reported,
-            Ok(()) => Error::Gpu(one_line(&format!("{}: {e}", self.adapter.name))),
-        };
-        // Polled, not waited on: a blocking wait holds wgpu's fence lock,
-        // which every other worker's submission then waits for, and the
-        // dispatches in flight would run one at a time.
-        let start = std::time::Instant::now();
-        let mapped = loop {
-            self.device
-                .poll(wgpu::PollType::Poll)
-                .map_err(|e| failed(&e))?;
-            match receive.try_recv() {
-                Ok(mapped) => break mapped,
-                Err(std::sync::mpsc::TryRecvError::Empty) => {}
-                Err(e) => return Err(failed(&e)),
-            }
-            if start.elapsed() > DISPATCH_TIMEOUT {
-                return Err(failed(&format!(
-                    "no answer within {} s",
-                    DISPATCH_TIMEOUT.as_secs()
-                )));
-            }
-            std::thread::sleep(POLL_INTERVAL);
-        };
-        mapped.map_err(|e| failed(&format!("reading the answers back: {e}")))?;
-        read(bytemuck::cast_slice(&slice.get_mapped_range()));
-        s.readback.unmap();
-        self.check()
-    }
-
-    /// A set of dispatch buffers no other dispatch holds: the first free
-    /// one from a rotating start; all in flight, the next in turn once it
-    /// is free (`wait`) or none. (A test's [`GpuTracer::refuse_every`]
-    /// refuses some attempts as if all were in flight.)
-    fn free_slots(&self, wait: bool) -> Option<std::sync::MutexGuard<'_, Option<Slots>>> {
-        let wait = wait || self.exclusive;
-        let first = self.next_slot.fetch_add(1, Ordering::Relaxed);
-        if !wait
-            && let Some(k) = self.refuse_every
-            && self
-                .attempts
-                .fetch_add(1, Ordering::Relaxed)
-                .is_multiple_of(k)
-        {
-            return None;
-        }
-        for k in 0..IN_FLIGHT {
-            if let Ok(slots) = self.slots[(first + k) % IN_FLIGHT].try_lock() {
-                return Some(slots);
-            }
-        }
-        wait.then(|| {
-            self.slots[first % IN_FLIGHT]
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-        })
     }
 
     /// For measurements of the GPU alone: every batch waits for a dispatch
@@ -508,16 +387,6 @@ impl GpuTracer {
     #[doc(hidden)]
     pub fn exclusive(&mut self) {
         self.exclusive = true;
-    }
-
-    /// For measurements of the rays' order on a GPU (`probes/gpu_rays`):
-    /// rays go to the GPU by direction (`order.rs`) instead of in the
-    /// batch's order. Not a bake's: on lavapipe it changed nothing
-    /// (Sponza's 10.7M rays: 2.23 against 2.24 Mrays/s), and no hardware
-    /// GPU has measured it yet.
-    #[doc(hidden)]
-    pub fn order_by_direction(&mut self) {
-        self.by_direction = true;
     }
 
     /// For tests of batches shared with the CPU: of the attempts to start
@@ -529,70 +398,18 @@ impl GpuTracer {
         self.refuse_every = Some(k.max(1));
     }
 
-    /// Buffers for dispatches of up to `capacity` rays.
-    fn slots(&self, capacity: usize) -> Slots {
-        let device = &self.device;
-        let buffer = |label, size: u64, usage| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size,
-                usage,
-                mapped_at_creation: false,
-            })
-        };
-        use wgpu::BufferUsages as U;
-        let n = capacity as u64;
-        let rays = buffer("rays", n * RAY_BYTES, U::STORAGE | U::COPY_DST);
-        let answers = buffer("answers", n * ANSWER_BYTES, U::STORAGE | U::COPY_SRC);
-        let readback = buffer("readback", n * ANSWER_BYTES, U::MAP_READ | U::COPY_DST);
-        let params = buffer("params", 16, U::UNIFORM | U::COPY_DST);
-        fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-            wgpu::BindGroupEntry {
-                binding,
-                resource: buffer.as_entire_binding(),
-            }
-        }
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("traverse"),
-            layout: &self.layout,
-            entries: &[
-                entry(0, &self.nodes),
-                entry(1, &self.tris),
-                entry(2, &rays),
-                entry(3, &answers),
-                entry(4, &params),
-                entry(5, &self.occluder),
-            ],
-        });
-        Slots {
-            capacity,
-            rays,
-            answers,
-            readback,
-            params,
-            group,
-        }
+    /// Where this tracer's time went, summed over its dispatches.
+    pub fn dispatch_times(&self) -> DispatchTimes {
+        self.timing.read()
+    }
+
+    /// Starts the sums of [`GpuTracer::dispatch_times`] afresh.
+    pub fn reset_dispatch_times(&self) {
+        self.timing.reset()
     }
 }
 
 /// `message` on one line (wgpu's span several).
 fn one_line(message: &str) -> String {
     message.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// Ray `i` of `rays` as the shader reads it: the CPU's shifted ray
-/// (bvh.rs), rounded here as there, and for a closest hit the cap; a
-/// blocked ray keeps its negative end.
-fn pack(rays: &RayBatch, i: usize, kind: Kind) -> [f32; 8] {
-    if rays.is_blocked(i) {
-        return [0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 1.0, 0.0];
-    }
-    let t_max = rays.t_max()[i];
-    let r = shifted_ray(rays.origins()[i], rays.directions()[i], t_max);
-    let cap = match kind {
-        Kind::Occluded => 0.0,
-        Kind::Closest => Hit::cap(t_max, rays.depths()[i]),
-    };
-    let (o, d) = (r.origin, r.direction);
-    [o.x, o.y, o.z, r.tmax, d.x, d.y, d.z, cap]
 }

@@ -1,6 +1,6 @@
 // Rays on the GPU: one invocation per ray, a stack traversal of a BVH2
 // (obvhs's, flattened by flatten.rs), the nearer child first. Two entry
-// points: `occluded` (any candidate ends the ray) and `closest` (the
+// points: `occluded` (a sure hit ends the ray) and `closest` (the
 // nearest candidate, cut at the ray's cap).
 //
 // In: nodes (box, then first child or first triangle, and the leaf's
@@ -11,21 +11,25 @@
 // cap: a hit beyond it is taken as a hit at it, Hit::cap in bvh.rs). A ray
 // whose end is negative is blocked (the host answers it).
 //
-// Out: candidates, which the host settles with the CPU's own triangle
-// test (gpu/mod.rs). The test here is the CPU's (obvhs's
-// RtTriangle::intersect, both faces, on the same precomputed edges and
-// normal, the same operations in the same order) with a margin: a
-// triangle counts when its barycentrics are above -BARY_MARGIN and its t
-// within T_MARGIN (relative) of the ray's range. A GPU may fuse a multiply
-// and an add where the CPU rounds twice, and on a ray through an edge
-// that decides the answer; with the margin every triangle the CPU hits is
-// a candidate here too, and the host retests the one found.
-// `occluded` writes answers[i] = a candidate, else NONE. `closest` writes
-// answers[2i] = the nearest candidate triangle (its distance the host's
-// retest gives), NONE for none, answers[2i + 1] = another occluder's
-// triangle hit within WINDOW (relative) of it below the cap, else NONE: a
-// near tie, which rounding or the CPU's traversal order decides, so the
-// host asks the CPU.
+// Out: final answers where the GPU's rounding cannot decide them, else
+// "unsure", for the host to trace on the CPU (gpu/mod.rs). The test here
+// is the CPU's (obvhs's RtTriangle::intersect, both faces, on the same
+// precomputed edges and normal, the same operations in the same order),
+// but a GPU may fuse a multiply and an add where the CPU rounds twice, and
+// on a ray through an edge that decides the answer. So each test bounds
+// its rounding (`candidate`): a triangle is a candidate when the ray meets
+// it within the margins (barycentrics above -BARY_MARGIN, t within
+// T_MARGIN of the range, relative) or within the bound, whichever is
+// wider, and a sure hit when it clears the bound inside the triangle and
+// the range. Every triangle the CPU hits is a candidate here, and every
+// sure hit a hit on the CPU.
+// `occluded` writes two bits a ray (ANSWER_*: a sure hit; no candidate;
+// else unsure), sixteen rays a word, ray i at bits 2 (i % 16) of word
+// i / 16. `closest` writes answers[i] = the nearest candidate triangle
+// (NONE for none; its distance the host's retest gives), its top bit set
+// (UNSURE_BIT) when it is not a sure hit or another occluder's candidate
+// lies within WINDOW (relative) of it below the cap: a near tie, which
+// rounding or the CPU's traversal order decides.
 //
 // The box test widens each box's exit by 2 gamma_3 (Ize 2013, "Robust BVH
 // Ray Traversal") so rounding never culls a box the ray enters.
@@ -77,34 +81,79 @@ const BARY_MARGIN: f32 = 1e-4;
 const T_MARGIN: f32 = 1e-5;
 // Two candidates nearer each other than this (relative) are a near tie.
 const WINDOW: f32 = 1e-5;
+// A hit this near the ray's start (bake units, past SHIFT) is never sure:
+// AT_START in bvh.rs.
+const AT_START: f32 = 1e-7;
+// Occlusion answers (two bits a ray) and the closest hit's flag (the top
+// bit of its triangle): see the header.
+const ANSWER_MISS: u32 = 0u;
+const ANSWER_HIT: u32 = 1u;
+const ANSWER_UNSURE: u32 = 2u;
+const UNSURE_BIT: u32 = 0x80000000u;
 
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     // In the CPU's order: (x + y) + z.
     return (a.x * b.x + a.y * b.y) + a.z * b.z;
 }
 
-// The t where the triangle is a candidate (either face) in [t_min, t_max]
-// widened by the margins, else MISS.
-fn candidate(tri: Tri, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
+// The CPU test's rounding, bounded: its u, v, w and t each lie within
+// the bound below of the exact values, and so do this test's (a fused
+// multiply-add rounds less, never more), so the two differ by at most
+// twice it. SURE_GAMMA is 16 units of rounding where the operations chain
+// at most 8 (a cross product, a dot product, the division): twice the
+// chain, for the two tests. Higham's gamma_n = n eps bound; eps = 2^-24.
+const SURE_GAMMA: f32 = 9.536743e-7;
+
+// What a triangle's test says of a ray.
+struct Test {
+    // Where the ray meets it (either face) within the margins, else MISS.
+    t: f32,
+    // Whether the CPU's test surely hits it in (t_sure, t_max]: every
+    // barycentric and both ends of the range clear the rounding bound.
+    sure: bool,
+};
+
+// The triangle's test (the CPU's, with the margins) for the ray from o
+// along d in [t_min, t_max]; a sure hit also lies beyond t_sure (a hit at
+// the ray's very start goes to the CPU, whose traversal may not reach it)
+// and before t_end, the ray's own end (t_max may reach past it).
+fn candidate(tri: Tri, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, t_sure: f32, t_end: f32) -> Test {
     let c = tri.v0.xyz - o;
     // d x c as glam computes it.
     let r = vec3<f32>(d.y * c.z - c.y * d.z, d.z * c.x - c.z * d.x, d.x * c.y - c.x * d.y);
     let det = dot3(tri.ng.xyz, d);
     if det == 0.0 {
-        return MISS;
+        return Test(MISS, false);
     }
     let inv_det = 1.0 / det;
     let u = dot3(r, tri.e2.xyz) * inv_det;
     let v = dot3(r, tri.e1.xyz) * inv_det;
     let w = 1.0 - u - v;
-    if !(min(u, min(v, w)) >= -BARY_MARGIN) {
-        return MISS;
-    }
     let t = dot3(tri.ng.xyz, c) * inv_det;
-    if t >= t_min * (1.0 - T_MARGIN) && t <= t_max * (1.0 + T_MARGIN) {
-        return max(t, 0.0);
+    // The rounding bounds: each operand's magnitude through the same
+    // operations, the division's relative error through |det|.
+    let ad = abs(d);
+    let ac = abs(c);
+    let big_r = vec3<f32>(ad.y * ac.z + ac.y * ad.z, ad.z * ac.x + ac.z * ad.x, ad.x * ac.y + ac.x * ad.y);
+    let an = abs(tri.ng.xyz);
+    let adet = abs(det);
+    let det_err = SURE_GAMMA * dot(an, ad);
+    let scale = 1.0 / adet;
+    let eu = SURE_GAMMA * dot(big_r, abs(tri.e2.xyz)) * scale + abs(u) * det_err * scale;
+    let ev = SURE_GAMMA * dot(big_r, abs(tri.e1.xyz)) * scale + abs(v) * det_err * scale;
+    let ew = eu + ev + SURE_GAMMA * (1.0 + abs(u) + abs(v));
+    let et = SURE_GAMMA * dot(an, ac) * scale + abs(t) * det_err * scale;
+    // A candidate within the margins or the bounds, whichever is wider.
+    let inside = u >= -max(BARY_MARGIN, eu) && v >= -max(BARY_MARGIN, ev) && w >= -max(BARY_MARGIN, ew);
+    let in_range = t >= min(t_min * (1.0 - T_MARGIN), t_min - et) && t <= max(t_max * (1.0 + T_MARGIN), t_max + et);
+    if !(inside && in_range) {
+        return Test(MISS, false);
     }
-    return MISS;
+    // Sure: a determinant whose sign rounding cannot flip, the hit inside
+    // the triangle and the range by more than the bounds. (A NaN fails
+    // every comparison: never sure.)
+    let sure = adet > 2.0 * det_err && u > eu && v > ev && w > ew && t > t_sure + et && t < t_end - et;
+    return Test(max(t, 0.0), sure);
 }
 
 // Where the ray enters the node's box within [0, t_end], else MISS.
@@ -121,8 +170,10 @@ fn enter_box(n: Node, o: vec3<f32>, inv: vec3<f32>, t_end: f32) -> f32 {
 struct Found {
     t: f32,
     tri: u32,
-    // Another occluder's candidate within WINDOW of t (below the cap).
-    tie: u32,
+    // Whether the answer is final: for `occluded`, a sure hit or no
+    // candidate at all; for `closest`, the nearest candidate is a sure
+    // hit and no other occluder's candidate is within WINDOW of it.
+    sure: bool,
 };
 
 // Whether two candidates' t are a near tie.
@@ -130,10 +181,12 @@ fn near(a: f32, b: f32) -> bool {
     return abs(a - b) <= WINDOW * max(a, b);
 }
 
-// The traversal both entry points share: with `any`, the first candidate
-// found (t unused); else the nearest, each candidate's t capped at `cap`.
+// The traversal both entry points share: with `any`, a sure hit ends the
+// ray (t unused) and a candidate that is not sure leaves it unsure; else
+// the nearest candidate, each candidate's t capped at `cap`.
 fn traverse(ray: Ray, any: bool) -> Found {
-    var found = Found(ray.origin.w, NONE, NONE);
+    let end = ray.origin.w;
+    var found = Found(end, NONE, true);
     let d = ray.dir.xyz;
     let o = ray.origin.xyz;
     let cap = ray.dir.w;
@@ -143,10 +196,14 @@ fn traverse(ray: Ray, any: bool) -> Found {
     let inv = 1.0 / safe;
     // How far candidates are looked for: past the nearest so far by the
     // tie window (past the ray's end by the margin).
-    var reach = found.t * (1.0 + WINDOW);
+    var reach = end * (1.0 + WINDOW);
     if enter_box(nodes[0], o, inv, reach) == MISS {
         return found;
     }
+    // Another occluder's candidate within WINDOW of the nearest (closest).
+    var tied = false;
+    // A node left unvisited (the stack full): no miss is sure.
+    var partial = false;
     // Nodes to visit with where the ray enters them: a node entered
     // beyond the reach since is skipped.
     var stack_node: array<u32, STACK>;
@@ -157,23 +214,26 @@ fn traverse(ray: Ray, any: bool) -> Found {
         let n = nodes[node];
         if n.count > 0u {
             for (var k = n.first; k < n.first + n.count; k++) {
-                let hit = candidate(tris[k], o, d, SHIFT, reach);
-                if hit == MISS {
+                let hit = candidate(tris[k], o, d, SHIFT, reach, SHIFT + AT_START, end);
+                if hit.t == MISS {
                     continue;
                 }
                 if any {
-                    found.tri = k;
-                    return found;
+                    if hit.sure {
+                        return Found(hit.t, k, true);
+                    }
+                    found.sure = false;
+                    continue;
                 }
-                let t = min(hit, cap);
+                let t = min(hit.t, cap);
                 let other = found.tri != NONE && occluder[k] != occluder[found.tri];
                 if found.tri == NONE || t < found.t {
                     // The one it replaces, if near, is a tie of the new.
-                    let tied = other && found.t < cap && near(t, found.t);
-                    found = Found(t, k, select(NONE, found.tri, tied));
+                    tied = other && found.t < cap && near(t, found.t);
+                    found = Found(t, k, hit.sure);
                     reach = min(found.t * (1.0 + WINDOW), reach);
                 } else if other && t < cap && near(t, found.t) {
-                    found.tie = k;
+                    tied = true;
                 }
             }
         } else {
@@ -186,6 +246,10 @@ fn traverse(ray: Ray, any: bool) -> Found {
                     stack_node[top] = select(a + 1u, a, b_first);
                     stack_enter[top] = max(ta, tb);
                     top++;
+                } else {
+                    // A deeper tree than the stack (refused on the host):
+                    // never answer from a partial walk.
+                    partial = true;
                 }
                 node = select(a, a + 1u, b_first);
                 continue;
@@ -211,6 +275,9 @@ fn traverse(ray: Ray, any: bool) -> Found {
         }
         node = next;
     }
+    if tied || partial {
+        found.sure = false;
+    }
     return found;
 }
 
@@ -218,15 +285,34 @@ fn traverse(ray: Ray, any: bool) -> Found {
 fn trace(i: u32, any: bool) -> Found {
     let ray = rays[i];
     if ray.origin.w < 0.0 {
-        return Found(0.0, NONE, NONE);
+        return Found(0.0, NONE, true);
     }
     return traverse(ray, any);
 }
 
+// Occlusion answers, two bits a ray, sixteen rays a word.
+var<workgroup> words: array<atomic<u32>, 4>;
+
 @compute @workgroup_size(64)
-fn occluded(@builtin(global_invocation_id) id: vec3<u32>) {
+fn occluded(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocation_index) local: u32) {
+    if local < 4u {
+        atomicStore(&words[local], 0u);
+    }
+    workgroupBarrier();
     if id.x < params.count {
-        answers[id.x] = trace(id.x, true).tri;
+        let found = trace(id.x, true);
+        var code = ANSWER_MISS;
+        if !found.sure {
+            code = ANSWER_UNSURE;
+        } else if found.tri != NONE {
+            code = ANSWER_HIT;
+        }
+        atomicOr(&words[local / 16u], code << (2u * (local % 16u)));
+    }
+    workgroupBarrier();
+    let word = id.x / 16u;
+    if local % 16u == 0u && 16u * word < params.count {
+        answers[word] = atomicLoad(&words[local / 16u]);
     }
 }
 
@@ -235,7 +321,6 @@ fn closest(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
     if i < params.count {
         let found = trace(i, false);
-        answers[2u * i] = found.tri;
-        answers[2u * i + 1u] = found.tie;
+        answers[i] = select(found.tri | UNSURE_BIT, found.tri, found.sure || found.tri == NONE);
     }
 }
