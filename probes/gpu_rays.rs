@@ -170,7 +170,8 @@ fn main() {
         let mut answers = Vec::new();
         gpu.occlusion(&rays, &mut answers).expect("GPU");
         let mut bins = [0usize; 6];
-        for i in (0..n).filter(|&i| answers[i] == aobake::trace::gpu::GpuAnswer::Unsure) {
+        for i in (0..n).filter(|&i| matches!(answers[i], aobake::trace::gpu::GpuAnswer::Unsure(_)))
+        {
             let (o, d, t) = (rays.origins()[i], rays.directions()[i], rays.t_max()[i]);
             let bin = match cpu.closest_hit(o, d, t) {
                 None => 0,

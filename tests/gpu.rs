@@ -55,7 +55,7 @@ fn answers_cover(gpu: &GpuTracer, cpu: &Tracer, rays: &RayBatch) -> usize {
         );
     }
     (0..rays.len())
-        .filter(|&i| !rays.is_blocked(i) && answers[i] == GpuAnswer::Unsure)
+        .filter(|&i| !rays.is_blocked(i) && matches!(answers[i], GpuAnswer::Unsure(_)))
         .count()
 }
 

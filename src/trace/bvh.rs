@@ -307,6 +307,27 @@ impl Tracer {
         })
     }
 
+    /// Whether the ray from `origin` along `dir` up to `t_max` is occluded
+    /// when `triangle` (leaf order) is the only triangle its test may hit:
+    /// that test's answer, or `None` for a hit at the ray's very start
+    /// (within [`AT_START`]), which this tracer's traversal may not reach:
+    /// the caller then asks the traversal.
+    #[cfg(feature = "gpu")]
+    pub(crate) fn retest_occlusion(
+        &self,
+        triangle: u32,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+    ) -> Option<bool> {
+        let ray = shifted_ray(origin, dir, t_max);
+        let t = self.tris.get(triangle as usize)?.intersect(&ray);
+        if !t.is_finite() {
+            return Some(false);
+        }
+        (t > BOX_EPSILON_SHIFT + AT_START).then_some(true)
+    }
+
     /// Whether `hit`, of a ray along `dir` traced without a cut (depth =
     /// t_max), is the back face of a single-sided triangle. Front faces are
     /// counter-clockwise; obvhs stores `ng = (v0 - v1) x (v2 - v0)`, the

@@ -183,8 +183,10 @@ impl Attached {
     /// Answers the occlusion of rays `from..` of `rays` into `out` (one
     /// answer a ray from `from`) as `cpu` (the tracer this is attached to)
     /// answers it, if the GPU has a dispatch free and has not failed. The
-    /// GPU's sure answers stand; the rays it is unsure of (a candidate
-    /// within rounding of the test) are traced here, in parallel.
+    /// GPU's sure answers stand; a ray it is unsure of (a candidate within
+    /// rounding of the test) is settled here, in parallel: by the CPU's
+    /// test on its one candidate where it had one (every other triangle a
+    /// sure miss), else by tracing it.
     pub(crate) fn occluded_from(
         &self,
         cpu: &super::Tracer,
@@ -209,10 +211,17 @@ impl Attached {
                             || match answer {
                                 GpuAnswer::Miss => false,
                                 GpuAnswer::Hit => true,
-                                GpuAnswer::Unsure => {
-                                    retraced += 1;
+                                GpuAnswer::Unsure(candidate) => {
                                     let (o, d) = (rays.origins()[i], rays.directions()[i]);
-                                    cpu.occluded(o, d, rays.t_max()[i])
+                                    let t_max = rays.t_max()[i];
+                                    let k = candidate.map(|k| self.to_cpu[k as usize]);
+                                    match k.and_then(|k| cpu.retest_occlusion(k, o, d, t_max)) {
+                                        Some(occluded) => occluded,
+                                        None => {
+                                            retraced += 1;
+                                            cpu.occluded(o, d, t_max)
+                                        }
+                                    }
                                 }
                             };
                     }

@@ -25,11 +25,14 @@
 // sure hit a hit on the CPU.
 // `occluded` writes two bits a ray (ANSWER_*: a sure hit; no candidate;
 // else unsure), sixteen rays a word, ray i at bits 2 (i % 16) of word
-// i / 16. `closest` writes answers[i] = the nearest candidate triangle
-// (NONE for none; its distance the host's retest gives), its top bit set
-// (UNSURE_BIT) when it is not a sure hit or another occluder's candidate
-// lies within WINDOW (relative) of it below the cap: a near tie, which
-// rounding or the CPU's traversal order decides.
+// i / 16, and for an unsure ray with a single candidate, that candidate
+// in a list (params.list_at: the count, then ray and triangle pairs), so
+// that the host retests one triangle instead of tracing the ray.
+// `closest` writes answers[i] = the nearest candidate triangle (NONE for
+// none; its distance the host's retest gives), its top bit set
+// (UNSURE_BIT) when another occluder's candidate lies within WINDOW
+// (relative) of it below the cap, a near tie which rounding or the CPU's
+// traversal order decides, or the walk was left partial.
 //
 // The box test widens each box's exit by 2 gamma_3 (Ize 2013, "Robust BVH
 // Ray Traversal") so rounding never culls a box the ray enters.
@@ -55,15 +58,18 @@ struct Ray {
 
 struct Params {
     count: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    // `occluded`: where the list of unsure rays' one candidates starts in
+    // `answers` (its length, then pairs of ray and triangle), and how
+    // many pairs it holds at most.
+    list_at: u32,
+    list_cap: u32,
+    _pad: u32,
 };
 
 @group(0) @binding(0) var<storage, read> nodes: array<Node>;
 @group(0) @binding(1) var<storage, read> tris: array<Tri>;
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
-@group(0) @binding(3) var<storage, read_write> answers: array<u32>;
+@group(0) @binding(3) var<storage, read_write> answers: array<atomic<u32>>;
 @group(0) @binding(4) var<uniform> params: Params;
 @group(0) @binding(5) var<storage, read> occluder: array<u32>;
 
@@ -90,6 +96,8 @@ const ANSWER_MISS: u32 = 0u;
 const ANSWER_HIT: u32 = 1u;
 const ANSWER_UNSURE: u32 = 2u;
 const UNSURE_BIT: u32 = 0x80000000u;
+// Several candidates that are not sure (`Found::doubt`).
+const MANY: u32 = 0xfffffffeu;
 
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     // In the CPU's order: (x + y) + z.
@@ -171,9 +179,12 @@ struct Found {
     t: f32,
     tri: u32,
     // Whether the answer is final: for `occluded`, a sure hit or no
-    // candidate at all; for `closest`, the nearest candidate is a sure
-    // hit and no other occluder's candidate is within WINDOW of it.
+    // candidate at all; for `closest`, no other occluder's candidate is
+    // within WINDOW of the nearest (the host retests that one).
     sure: bool,
+    // `occluded`: the one candidate that is not sure, NONE for none, MANY
+    // for several (or a walk left partial).
+    doubt: u32,
 };
 
 // Whether two candidates' t are a near tie.
@@ -186,7 +197,7 @@ fn near(a: f32, b: f32) -> bool {
 // the nearest candidate, each candidate's t capped at `cap`.
 fn traverse(ray: Ray, any: bool) -> Found {
     let end = ray.origin.w;
-    var found = Found(end, NONE, true);
+    var found = Found(end, NONE, true, NONE);
     let d = ray.dir.xyz;
     let o = ray.origin.xyz;
     let cap = ray.dir.w;
@@ -220,9 +231,10 @@ fn traverse(ray: Ray, any: bool) -> Found {
                 }
                 if any {
                     if hit.sure {
-                        return Found(hit.t, k, true);
+                        return Found(hit.t, k, true, NONE);
                     }
                     found.sure = false;
+                    found.doubt = select(MANY, k, found.doubt == NONE);
                     continue;
                 }
                 let t = min(hit.t, cap);
@@ -230,7 +242,7 @@ fn traverse(ray: Ray, any: bool) -> Found {
                 if found.tri == NONE || t < found.t {
                     // The one it replaces, if near, is a tie of the new.
                     tied = other && found.t < cap && near(t, found.t);
-                    found = Found(t, k, hit.sure);
+                    found = Found(t, k, true, NONE);
                     reach = min(found.t * (1.0 + WINDOW), reach);
                 } else if other && t < cap && near(t, found.t) {
                     tied = true;
@@ -278,6 +290,9 @@ fn traverse(ray: Ray, any: bool) -> Found {
     if tied || partial {
         found.sure = false;
     }
+    if partial {
+        found.doubt = MANY;
+    }
     return found;
 }
 
@@ -285,7 +300,7 @@ fn traverse(ray: Ray, any: bool) -> Found {
 fn trace(i: u32, any: bool) -> Found {
     let ray = rays[i];
     if ray.origin.w < 0.0 {
-        return Found(0.0, NONE, true);
+        return Found(0.0, NONE, true, NONE);
     }
     return traverse(ray, any);
 }
@@ -308,11 +323,20 @@ fn occluded(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocat
             code = ANSWER_HIT;
         }
         atomicOr(&words[local / 16u], code << (2u * (local % 16u)));
+        // The one candidate of an unsure ray, for the host's retest.
+        if !found.sure && found.doubt != MANY {
+            let k = atomicAdd(&answers[params.list_at], 1u);
+            if k < params.list_cap {
+                let at = params.list_at + 1u + 2u * k;
+                atomicStore(&answers[at], id.x);
+                atomicStore(&answers[at + 1u], found.doubt);
+            }
+        }
     }
     workgroupBarrier();
     let word = id.x / 16u;
     if local % 16u == 0u && 16u * word < params.count {
-        answers[word] = atomicLoad(&words[local / 16u]);
+        atomicStore(&answers[word], atomicLoad(&words[local / 16u]));
     }
 }
 
@@ -321,6 +345,6 @@ fn closest(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
     if i < params.count {
         let found = trace(i, false);
-        answers[i] = select(found.tri | UNSURE_BIT, found.tri, found.sure || found.tri == NONE);
+        atomicStore(&answers[i], select(found.tri | UNSURE_BIT, found.tri, found.sure || found.tri == NONE));
     }
 }

@@ -52,7 +52,8 @@ pub(super) struct Staging {
 impl GpuTracer {
     /// Rays `from..` of `rays` in dispatches of at most
     /// [`RAYS_PER_DISPATCH`], each through a free set of dispatch buffers,
-    /// their answers' words appended to `words` in order. Without `wait`,
+    /// each dispatch's answers' words handed to `read` with the index of
+    /// its first ray, in order. Without `wait`,
     /// `Ok(false)` and nothing traced when no set is free at the start.
     ///
     /// Each dispatch's rays are packed (in parallel, into a buffer kept for
@@ -66,7 +67,7 @@ impl GpuTracer {
         from: usize,
         kind: Kind,
         wait: bool,
-        words: &mut Vec<u32>,
+        read: &mut dyn FnMut(usize, &[u32]),
     ) -> Result<bool> {
         if !wait && !self.exclusive && !self.any_slots_free() {
             return Ok(false);
@@ -91,7 +92,9 @@ impl GpuTracer {
             staging.buffer.unmap();
             self.timing.add(Stage::Pack, packing);
             let mut slots = self.take_slots();
-            self.dispatch(&mut slots, staging, end - start, kind, words)?;
+            self.dispatch(&mut slots, staging, end - start, kind, &mut |w| {
+                read(start, w)
+            })?;
             start = end;
         }
         Ok(true)
@@ -121,7 +124,7 @@ impl GpuTracer {
     }
 
     /// One dispatch of the `n` rays packed in `staging`: copies them to
-    /// the device, runs the shader, appends the answers' words to `words`,
+    /// the device, runs the shader, hands the answers' words to `read`,
     /// and maps `staging` again for a later batch.
     fn dispatch(
         &self,
@@ -129,9 +132,8 @@ impl GpuTracer {
         staging: Staging,
         n: usize,
         kind: Kind,
-        words: &mut Vec<u32>,
+        read: &mut dyn FnMut(&[u32]),
     ) -> Result<()> {
-        let out = words;
         if self.lose_after == Some(self.dispatches.fetch_add(1, Ordering::Relaxed)) {
             self.device.destroy();
         }
@@ -143,9 +145,14 @@ impl GpuTracer {
         let uploading = std::time::Instant::now();
         self.timing.dispatched(n);
         let queue = &self.queue;
-        queue.write_buffer(&s.params, 0, bytemuck::cast_slice(&[n as u32, 0, 0, 0]));
+        let (list_at, list_cap) = kind.list(n);
+        let params = [n as u32, list_at as u32, list_cap as u32, 0];
+        queue.write_buffer(&s.params, 0, bytemuck::cast_slice(&params));
         let bytes = 4 * kind.answer_words(n) as u64;
         let mut encoder = self.device.create_command_encoder(&Default::default());
+        if list_cap > 0 {
+            encoder.clear_buffer(&s.answers, 4 * list_at as u64, Some(4));
+        }
         encoder.copy_buffer_to_buffer(&staging.buffer, 0, &s.rays, 0, n as u64 * RAY_BYTES);
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -214,7 +221,7 @@ impl GpuTracer {
         {
             let mapped = slice.get_mapped_range();
             let words: &[u32] = bytemuck::cast_slice(&mapped);
-            out.extend_from_slice(&words[..bytes as usize / 4]);
+            read(&words[..bytes as usize / 4]);
             if let Some(tick_ns) = self.tick_ns.filter(|_| s.queries.is_some()) {
                 let at = stamps as usize / 4;
                 let stamp =
@@ -287,7 +294,11 @@ impl GpuTracer {
         use wgpu::BufferUsages as U;
         let n = capacity as u64;
         let rays = buffer("rays", n * RAY_BYTES, U::STORAGE | U::COPY_DST);
-        let answers = buffer("answers", n * ANSWER_BYTES, U::STORAGE | U::COPY_SRC);
+        let answers = buffer(
+            "answers",
+            n * ANSWER_BYTES,
+            U::STORAGE | U::COPY_SRC | U::COPY_DST,
+        );
         let readback = buffer(
             "readback",
             n * ANSWER_BYTES + TIMESTAMP_BYTES,
