@@ -23,7 +23,7 @@ use aobake::atlas::AtlasSize;
 use aobake::bake::ReceiverRays;
 use aobake::job::{Level, RunOptions};
 use aobake::stage::StageTimer;
-use aobake::trace::gpu::{Adapters, GpuTracer};
+use aobake::trace::gpu::{Adapters, Attached, GpuTracer};
 use aobake::trace::{Closest, Hit, Occlusion, Query, RayBatch, Tracer};
 use aobake::{BakeSettings, Device};
 use glam::Vec3;
@@ -65,10 +65,17 @@ fn timed<Q: Query>(tracer: &Tracer, rays: &RayBatch, size: usize) -> (f64, Vec<Q
             .collect()
     };
     let _ = trace();
-    tracer.reset_gpu_times();
+    if let Some(gpu) = gpu_of(tracer) {
+        gpu.reset_dispatch_times();
+    }
     let t = Instant::now();
     let answers = trace();
     (t.elapsed().as_secs_f64(), answers.concat())
+}
+
+/// The GPU backend attached to `tracer`, if it is one.
+fn gpu_of(tracer: &Tracer) -> Option<&Attached> {
+    tracer.accelerator()?.as_any().downcast_ref::<Attached>()
 }
 
 /// Where `tracer`'s GPU time went in its last timed run, per dispatch
@@ -78,7 +85,7 @@ fn timed<Q: Query>(tracer: &Tracer, rays: &RayBatch, size: usize) -> (f64, Vec<Q
 /// pack, upload, read and settle: the submission and the wait are the
 /// device's (a software adapter runs the kernel in the submission).
 fn print_stages(what: &str, tracer: &Tracer) {
-    let Some(t) = tracer.gpu_dispatch_times() else {
+    let Some(t) = gpu_of(tracer).map(|g| g.dispatch_times()) else {
         return;
     };
     let rays = t.rays.max(1) as f64;
@@ -158,9 +165,9 @@ fn main() {
     let adapter = gpu.adapter().clone();
     let cpu = Tracer::with_sides(occluders, sides);
     let mut on_gpu = Tracer::with_sides(occluders, sides);
-    on_gpu.attach_gpu(gpu);
+    gpu.attach_to(&mut on_gpu);
     let mut shared = Tracer::with_sides(occluders, sides);
-    shared.attach_gpu(start());
+    start().attach_to(&mut shared);
     let n = rays.len();
     // The rays the GPU is unsure of (traced again on the CPU), by where
     // the CPU's closest hit lies: none (a candidate only within the
@@ -170,8 +177,7 @@ fn main() {
         let mut answers = Vec::new();
         gpu.occlusion(&rays, &mut answers).expect("GPU");
         let mut bins = [0usize; 6];
-        for i in (0..n).filter(|&i| matches!(answers[i], aobake::trace::gpu::GpuAnswer::Unsure(_)))
-        {
+        for i in (0..n).filter(|&i| answers[i] == aobake::trace::gpu::GpuAnswer::Unsure) {
             let (o, d, t) = (rays.origins()[i], rays.directions()[i], rays.t_max()[i]);
             let bin = match cpu.closest_hit(o, d, t) {
                 None => 0,
@@ -269,13 +275,15 @@ fn main() {
         100.0 * differ as f64 / n as f64,
         differing(&shared_hits)
     );
-    if let Some((gpu, cpu)) = shared.gpu_rays() {
+    if let Some((gpu, cpu)) = shared.accelerated_rays() {
         println!(
             "shared: {:.1}% of the rays traced on the GPU",
             100.0 * gpu as f64 / (gpu + cpu).max(1) as f64
         );
     }
-    let failed = [&on_gpu, &shared].into_iter().find_map(|t| t.gpu_failure());
+    let failed = [&on_gpu, &shared]
+        .into_iter()
+        .find_map(|t| t.accelerator_failure());
     if let Some(failure) = failed {
         eprintln!("the GPU failed, the CPU answered the rest: {failure}");
         std::process::exit(1);

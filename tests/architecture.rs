@@ -359,16 +359,7 @@ fn nested_cycles(modules: &[Module]) -> Vec<(String, BTreeMap<String, BTreeSet<S
 
 /// Folders allowed an import cycle among their modules, and why. Each must
 /// still have one (the test fails once it is gone, so the entry goes too).
-const KNOWN_CYCLES: &[(&str, &str)] = &[
-    // The GPU backend is attached inside the CPU tracer (bvh.rs holds a
-    // `gpu::Attached`, batch.rs's queries dispatch to it, gpu/ imports
-    // bvh's hit and ray types). One backend interface in trace/ that both
-    // implement removes it (issue 65, item 5).
-    (
-        "src/trace",
-        "the GPU backend attached inside the CPU tracer",
-    ),
-];
+const KNOWN_CYCLES: &[(&str, &str)] = &[];
 
 #[test]
 fn modules_of_a_folder_import_each_other_without_a_cycle() {

@@ -48,7 +48,7 @@ impl Backend {
 
     /// This backend with `tracer`'s counts of the rays each side answered.
     pub fn with_rays(&self, tracer: &Tracer) -> Backend {
-        let (gpu, cpu) = tracer.gpu_rays().unzip();
+        let (gpu, cpu) = tracer.accelerated_rays().unzip();
         Backend {
             rays_on_gpu: gpu,
             rays_on_cpu: cpu,
@@ -82,7 +82,7 @@ pub fn attach(tracer: &mut Tracer, occluders: &[[Vec3A; 3]], device: Device) -> 
         match GpuTracer::new(occluders, which) {
             Ok(Some(gpu)) => {
                 let adapter = gpu.adapter().name.clone();
-                tracer.attach_gpu(gpu);
+                gpu.attach_to(tracer);
                 Ok(Backend {
                     adapter: Some(adapter),
                     ..Backend::default()

@@ -206,7 +206,7 @@ impl<'a> Job<'a> {
             // A GPU that failed mid-bake left the rest to the CPU: an
             // error where the GPU was asked for (at once, no page more),
             // a warning (in write) for auto.
-            if let Some(failure) = level.tracer.gpu_failure()
+            if let Some(failure) = level.tracer.accelerator_failure()
                 && s.device == Device::Gpu
             {
                 return Err(Error::Gpu(format!("{failure}; nothing written")));
@@ -264,7 +264,7 @@ impl<'a> Job<'a> {
             self.input_hash,
             &mut self.timer,
         )?;
-        if let Some(failure) = level.tracer.gpu_failure() {
+        if let Some(failure) = level.tracer.accelerator_failure() {
             warnings.push(format!(
                 "the GPU failed mid-bake ({failure}); the rest was traced on the CPU"
             ));

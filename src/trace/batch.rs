@@ -13,103 +13,19 @@
 //! ordered, so a pass's sums (added in each receiver's own order) are the
 //! same bytes as when it called the tracer ray by ray, on any thread count.
 
-use super::{Hit, Tracer};
+use super::backend::{Accelerator, Offer};
+use super::{Hit, RayBatch, Tracer};
 use glam::Vec3;
 use rayon::prelude::*;
-
-/// Rays traced together: structure of arrays, a GPU's upload as it is.
-#[derive(Clone, Debug, Default)]
-pub struct RayBatch {
-    origins: Vec<Vec3>,
-    directions: Vec<Vec3>,
-    /// Max distance per ray; negative: a blocked ray.
-    t_max: Vec<f32>,
-    /// Per ray, the depth a closest-hit query may cut it at (t_max: none).
-    depth: Vec<f32>,
-}
 
 /// Rays of a batch traced one after the other by one worker: a large batch
 /// is split into pieces of this many, traced in parallel.
 const PIECE: usize = 4096;
 
-/// Receivers to a batch at least when a GPU answers them: tens of
-/// thousands of rays a dispatch in a pre-pass round, up to a million in
-/// the adaptive pass (32 MB of rays per worker at its most).
-#[cfg(feature = "gpu")]
-const GPU_RECEIVERS: usize = 4096;
-
-impl RayBatch {
-    pub fn new() -> RayBatch {
-        RayBatch::default()
-    }
-
-    /// A ray from `origin` along unit `direction`, asking for hits in
-    /// (0, t_max] (a NaN or negative `t_max` asks for none).
-    #[inline]
-    pub fn push(&mut self, origin: Vec3, direction: Vec3, t_max: f32) {
-        self.push_within(origin, direction, t_max, t_max);
-    }
-
-    /// A ray whose closest hit is only needed exactly up to `depth` (see
-    /// [`Tracer::trace_closest`]); occlusion queries ignore the depth.
-    #[inline]
-    pub fn push_within(&mut self, origin: Vec3, direction: Vec3, t_max: f32, depth: f32) {
-        self.origins.push(origin);
-        self.directions.push(direction);
-        self.t_max.push(if t_max >= 0.0 { t_max } else { 0.0 });
-        self.depth.push(depth);
-    }
-
-    /// A blocked ray: occluded without tracing (a direction at or below
-    /// the receiver's geometric plane enters its own surface).
-    #[inline]
-    pub fn push_blocked(&mut self, direction: Vec3) {
-        self.origins.push(Vec3::ZERO);
-        self.directions.push(direction);
-        self.t_max.push(-1.0);
-        self.depth.push(-1.0);
-    }
-
-    pub fn len(&self) -> usize {
-        self.t_max.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.t_max.is_empty()
-    }
-
-    pub fn clear(&mut self) {
-        self.origins.clear();
-        self.directions.clear();
-        self.t_max.clear();
-        self.depth.clear();
-    }
-
-    /// The rays' directions, in the order they were pushed.
-    pub fn directions(&self) -> &[Vec3] {
-        &self.directions
-    }
-
-    pub fn origins(&self) -> &[Vec3] {
-        &self.origins
-    }
-
-    /// Max distances; negative for a blocked ray.
-    pub fn t_max(&self) -> &[f32] {
-        &self.t_max
-    }
-
-    /// Per ray, the depth a closest-hit query may cut it at.
-    pub fn depths(&self) -> &[f32] {
-        &self.depth
-    }
-
-    /// Whether ray `i` is blocked (occluded without tracing).
-    #[inline]
-    pub fn is_blocked(&self, i: usize) -> bool {
-        self.t_max[i] < 0.0
-    }
-}
+/// Receivers to a batch at least when an accelerator answers them: tens
+/// of thousands of rays a dispatch in a pre-pass round, up to a million
+/// in the adaptive pass (32 MB of rays per worker at its most).
+const ACCELERATED_RECEIVERS: usize = 4096;
 
 /// What a batch asks of each ray, and the answer's type.
 pub trait Query: Sync {
@@ -118,19 +34,16 @@ pub trait Query: Sync {
     fn answer(tracer: &Tracer, rays: &RayBatch, i: usize) -> Self::Answer;
     /// A blocked ray's answer.
     const BLOCKED: Self::Answer;
-    /// Offers rays `from..` of the batch to `tracer`'s GPU, which answers
-    /// them into `out` (one a ray from `from`) if this query runs there, a
-    /// dispatch is free and it has not failed.
-    #[cfg(feature = "gpu")]
-    fn on_gpu(
-        _tracer: &Tracer,
-        _gpu: &super::gpu::Attached,
-        _rays: &RayBatch,
-        _from: usize,
-        _out: &mut [Self::Answer],
-    ) -> super::gpu::Offer {
-        super::gpu::Offer::Failed
-    }
+    /// Offers rays `from..` of the batch to `accelerator` (attached to
+    /// `tracer`), which answers them into `out` (one a ray from `from`) if
+    /// it takes them.
+    fn offer(
+        accelerator: &dyn Accelerator,
+        tracer: &Tracer,
+        rays: &RayBatch,
+        from: usize,
+        out: &mut [Self::Answer],
+    ) -> Offer;
 }
 
 /// Whether anything is hit in (0, t_max] (a blocked ray: true).
@@ -143,15 +56,14 @@ impl Query for Occlusion {
     fn answer(tracer: &Tracer, rays: &RayBatch, i: usize) -> bool {
         tracer.occluded(rays.origins[i], rays.directions[i], rays.t_max[i])
     }
-    #[cfg(feature = "gpu")]
-    fn on_gpu(
+    fn offer(
+        accelerator: &dyn Accelerator,
         tracer: &Tracer,
-        gpu: &super::gpu::Attached,
         rays: &RayBatch,
         from: usize,
         out: &mut [bool],
-    ) -> super::gpu::Offer {
-        gpu.occluded_from(tracer, rays, from, out)
+    ) -> Offer {
+        accelerator.occluded_from(tracer, rays, from, out)
     }
 }
 
@@ -167,15 +79,14 @@ impl Query for Closest {
         let (o, d) = (rays.origins[i], rays.directions[i]);
         tracer.trace_closest(o, d, rays.t_max[i], rays.depth[i])
     }
-    #[cfg(feature = "gpu")]
-    fn on_gpu(
+    fn offer(
+        accelerator: &dyn Accelerator,
         tracer: &Tracer,
-        gpu: &super::gpu::Attached,
         rays: &RayBatch,
         from: usize,
         out: &mut [Option<Hit>],
-    ) -> super::gpu::Offer {
-        gpu.closest_from(tracer, rays, from, out)
+    ) -> Offer {
+        accelerator.closest_from(tracer, rays, from, out)
     }
 }
 
@@ -183,30 +94,27 @@ impl Tracer {
     /// Every ray's answer to `Q`, into `out` (cleared first), in the
     /// batch's order. Pieces of a large batch are traced in parallel.
     ///
-    /// With a GPU attached, the GPU answers the batch when one of its
-    /// dispatches is free; while all are in flight, this worker answers a
-    /// piece of it on the CPU and offers the rest again, so the CPU's
-    /// threads trace beside the GPU instead of waiting for it. Both answer
-    /// every ray alike, so who answered which piece changes no answer.
+    /// With an accelerator attached, it answers the batch when it takes
+    /// it; while it is busy, this worker answers a piece of it on the CPU
+    /// and offers the rest again, so the CPU's threads trace beside the
+    /// device instead of waiting for it. Both answer every ray alike, so
+    /// who answered which piece changes no answer.
     pub fn trace_batch<Q: Query>(&self, rays: &RayBatch, out: &mut Vec<Q::Answer>) {
         out.clear();
         out.resize(rays.len(), Q::Answer::default());
-        #[allow(unused_mut)]
         let mut from = 0;
-        #[cfg(feature = "gpu")]
-        if let Some(gpu) = self.gpu() {
-            use super::gpu::Offer;
+        if let Some(accelerator) = self.accelerator() {
             while from < rays.len() {
-                match Q::on_gpu(self, gpu, rays, from, &mut out[from..]) {
+                match Q::offer(accelerator, self, rays, from, &mut out[from..]) {
                     Offer::Answered => return,
                     Offer::Busy => {
                         let end = (from + PIECE).min(rays.len());
                         self.trace_piece::<Q>(rays, from, &mut out[from..end]);
-                        gpu.answered_on_cpu(end - from);
+                        accelerator.answered_on_cpu(end - from);
                         from = end;
                     }
                     Offer::Failed => {
-                        gpu.answered_on_cpu(rays.len() - from);
+                        accelerator.answered_on_cpu(rays.len() - from);
                         break;
                     }
                 }
@@ -269,11 +177,10 @@ pub fn for_each_receiver_query<Q: Query, S: Send>(
     progress: &(dyn Fn(u64) + Sync),
 ) {
     let chunk = chunk.max(1);
-    // On a GPU a dispatch costs a round trip whatever its size: batches
+    // On a device a batch costs a round trip whatever its size: batches
     // of many receivers keep it busy (the answers do not depend on it).
-    #[cfg(feature = "gpu")]
-    let chunk = match tracer.gpu() {
-        Some(_) => chunk.max(GPU_RECEIVERS),
+    let chunk = match tracer.accelerator() {
+        Some(_) => chunk.max(ACCELERATED_RECEIVERS),
         None => chunk,
     };
     states.par_chunks_mut(chunk).enumerate().for_each_init(

@@ -4,51 +4,18 @@
 //! occlusion (any hit closer than `t_max`) and closest-hit queries. Both
 //! faces occlude. Built with obvhs as a compressed wide BVH (CWBVH) with
 //! triangles stored in leaf order, so traversal has no indirection. The
-//! passes reach it through [`super::batch`], which hands whole batches to
-//! the GPU backend instead where one is attached.
+//! passes reach it through [`super::batch`], which offers whole batches to
+//! an attached accelerator ([`super::backend`]) first.
 
+use super::backend::{Accelerator, Settle};
+use super::ray::{AT_START, BOX_EPSILON_SHIFT, Hit, build_params, shifted_ray, triangles};
 use glam::{Vec3, Vec3A};
 use obvhs::{
-    BvhBuildParams,
     cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
-    ray::{Ray, RayHit},
+    ray::RayHit,
     rt_triangle::RtTriangle,
-    triangle::Triangle,
 };
 use std::time::Duration;
-
-/// A closest-hit answer as traversed: the hit's parameter along the
-/// shifted ray (cut at the depth asked, see [`Tracer::trace_closest`]) and
-/// its triangle (in leaf order). Kept raw so that an answer traced with a
-/// cut at one depth gives, exactly, what a query cut at any smaller depth
-/// would have returned ([`Hit::distance_within`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
-    shifted: f32,
-    triangle: u32,
-}
-
-impl Hit {
-    /// Where a ray of max distance `t_max` cut at `depth` is cut, along
-    /// the shifted ray. (min/max, not clamp: no panic on a NaN or negative
-    /// t_max.)
-    #[inline]
-    pub(crate) fn cap(t_max: f32, depth: f32) -> f32 {
-        depth.min(t_max).max(0.0) + BOX_EPSILON_SHIFT
-    }
-
-    /// The hit's distance from the origin when it is below `depth`, else
-    /// `depth` (`depth` in [0, t_max]): what a query cut at `depth`
-    /// returns, for any `depth` up to the one the ray was traced with.
-    #[inline]
-    pub fn distance_within(self, t_max: f32, depth: f32) -> f32 {
-        if self.shifted >= Hit::cap(t_max, depth) {
-            depth.min(t_max).max(0.0)
-        } else {
-            self.shifted - BOX_EPSILON_SHIFT
-        }
-    }
-}
 
 /// Ray-tracing acceleration structure over the scene's occluders.
 pub struct Tracer {
@@ -56,70 +23,8 @@ pub struct Tracer {
     tris: Vec<RtTriangle>,
     /// Per triangle in leaf order: single-sided (its back face is "inside").
     single_sided: Vec<bool>,
-    /// The GPU backend answering the batches, if attached.
-    #[cfg(feature = "gpu")]
-    gpu: Option<super::gpu::Attached>,
-}
-
-/// obvhs's CWBVH node test clamps a box's entry distance to an absolute
-/// 1e-4 (`EPSILON` in obvhs 0.4 `cwbvh/node.rs`, marked "ray.tmin?"), so it
-/// culls every box a ray leaves before t = 1e-4 and loses hits closer than
-/// that: 1e-4 of the scene diagonal in bake space, e.g. a box resting 3 mm
-/// under a slab in Sponza. Rays therefore start this far behind their origin,
-/// with t_min at the same distance: boxes are entered after the clamp, and
-/// the triangle test's t_min still excludes everything behind the origin.
-pub(crate) const BOX_EPSILON_SHIFT: f32 = 2e-4;
-
-/// How near the ray's start a hit leaves [`Tracer::retest`] to the
-/// traversal (bake units): origins lying on another surface, hit at
-/// distances of 1e-8, which the traversal missed where the test hit
-/// (a few rays from border-fit points in Sponza's bake); far below any
-/// modelled gap ([`crate::trace::ORIGIN_OFFSET`] is 2e-6).
-#[cfg(feature = "gpu")]
-const AT_START: f32 = 1e-7;
-
-/// The ray the CPU traces for a query from `origin` along `dir` up to
-/// `t_max` (the GPU backend traces the same one).
-#[inline]
-pub(crate) fn shifted_ray(origin: Vec3, dir: Vec3, t_max: f32) -> Ray {
-    let dir = positive_zeros(dir);
-    Ray::new(
-        (origin - dir * BOX_EPSILON_SHIFT).into(),
-        dir.into(),
-        BOX_EPSILON_SHIFT,
-        t_max + BOX_EPSILON_SHIFT,
-    )
-}
-
-/// The occluders as obvhs's triangles.
-pub(crate) fn triangles(occluders: &[[Vec3A; 3]]) -> Vec<Triangle> {
-    occluders
-        .iter()
-        .map(|t| Triangle {
-            v0: t[0],
-            v1: t[1],
-            v2: t[2],
-        })
-        .collect()
-}
-
-/// obvhs's build preset for `count` triangles (both backends' trees):
-/// `very_slow` (slower build, faster traversal) pays off at millions of
-/// rays, which a scene of this size gets.
-pub(crate) fn build_params(count: usize) -> BvhBuildParams {
-    if count > 20_000 {
-        BvhBuildParams::very_slow_build()
-    } else {
-        BvhBuildParams::medium_build()
-    }
-}
-
-/// Turns -0.0 components into +0.0: obvhs picks the traversal octant from
-/// the sign bits while its inverse direction treats -0.0 as +0.0, and a
-/// ray along -z with -0.0 x and y components then misses everything.
-#[inline]
-fn positive_zeros(d: Vec3) -> Vec3 {
-    d + Vec3::ZERO
+    /// The device answering the batches, if one is attached.
+    accelerator: Option<Box<dyn Accelerator>>,
 }
 
 impl Tracer {
@@ -138,8 +43,7 @@ impl Tracer {
                 bvh: None,
                 tris: Vec::new(),
                 single_sided: Vec::new(),
-                #[cfg(feature = "gpu")]
-                gpu: None,
+                accelerator: None,
             };
         }
         let tris = triangles(occluders);
@@ -158,69 +62,43 @@ impl Tracer {
             bvh: Some(bvh),
             tris: rt,
             single_sided: sides,
-            #[cfg(feature = "gpu")]
-            gpu: None,
+            accelerator: None,
         }
     }
 
     /// Hands the batches ([`Tracer::trace_batch`]: occlusion and closest
-    /// hits) to `gpu`, which holds the same occluders; the per-ray queries
-    /// stay here.
-    #[cfg(feature = "gpu")]
-    pub fn attach_gpu(&mut self, gpu: super::gpu::GpuTracer) {
-        let order = self.bvh.as_ref().map_or(&[][..], |b| &b.primitive_indices);
-        self.gpu = Some(super::gpu::Attached::new(gpu, order));
+    /// hits) to `accelerator`, which holds the same occluders; the per-ray
+    /// queries stay here.
+    pub fn attach(&mut self, accelerator: Box<dyn Accelerator>) {
+        self.accelerator = Some(accelerator);
     }
 
-    /// The attached GPU backend, if any.
-    #[cfg(feature = "gpu")]
-    pub(crate) fn gpu(&self) -> Option<&super::gpu::Attached> {
-        self.gpu.as_ref()
+    /// The attached accelerator, if any.
+    pub fn accelerator(&self) -> Option<&dyn Accelerator> {
+        self.accelerator.as_deref()
     }
 
-    /// The name of the GPU adapter answering the batches, if one
-    /// is attached.
-    pub fn gpu_adapter(&self) -> Option<&str> {
-        #[cfg(feature = "gpu")]
-        if let Some(g) = &self.gpu {
-            return Some(&g.adapter().name);
-        }
-        None
+    /// Per triangle in this tracer's leaf order (as [`Hit`]s and
+    /// [`Tracer::retest`] name them), its index among the occluders given.
+    pub fn leaf_order(&self) -> &[u32] {
+        self.bvh.as_ref().map_or(&[][..], |b| &b.primitive_indices)
     }
 
-    /// With a GPU attached, the rays of the batches it answered and those
-    /// the CPU answered instead (all its dispatches in flight, or failed).
-    pub fn gpu_rays(&self) -> Option<(u64, u64)> {
-        #[cfg(feature = "gpu")]
-        if let Some(g) = &self.gpu {
-            return Some(g.rays());
-        }
-        None
+    /// The name of the device answering the batches, if one is attached.
+    pub fn accelerator_name(&self) -> Option<&str> {
+        self.accelerator().map(|a| a.name())
     }
 
-    /// With a GPU attached, where its time went per stage of its
-    /// dispatches, summed since it was attached or [`Tracer::reset_gpu_times`].
-    #[cfg(feature = "gpu")]
-    pub fn gpu_dispatch_times(&self) -> Option<super::gpu::DispatchTimes> {
-        self.gpu.as_ref().map(|g| g.dispatch_times())
+    /// With an accelerator attached, the rays of the batches it answered
+    /// and those the CPU answered instead (the device busy, or failed).
+    pub fn accelerated_rays(&self) -> Option<(u64, u64)> {
+        self.accelerator().map(|a| a.rays())
     }
 
-    /// Starts [`Tracer::gpu_dispatch_times`]'s sums afresh.
-    #[cfg(feature = "gpu")]
-    pub fn reset_gpu_times(&self) {
-        if let Some(g) = &self.gpu {
-            g.reset_dispatch_times()
-        }
-    }
-
-    /// Why the GPU stopped answering, if a batch failed (the rest were
-    /// traced here).
-    pub fn gpu_failure(&self) -> Option<&str> {
-        #[cfg(feature = "gpu")]
-        if let Some(g) = &self.gpu {
-            return g.failure();
-        }
-        None
+    /// Why the accelerator stopped answering, if a batch failed (the rest
+    /// were traced here).
+    pub fn accelerator_failure(&self) -> Option<&str> {
+        self.accelerator().and_then(|a| a.failure())
     }
 
     /// Whether any occluder triangle is single-sided: without one, no
@@ -278,14 +156,14 @@ impl Tracer {
     }
 
     /// The hit [`Tracer::trace_closest`] returns when `triangle` (in leaf
-    /// order) is the closest: its test on the same ray, cut at `depth`;
+    /// order) is the closest: its test on the same ray, cut at `depth`
+    /// (for an accelerator settling what its device left open);
     /// `None` where the test misses it, or hits it at the ray's very start
-    /// (within [`AT_START`] of it: an origin on another surface), where this
+    /// (within `AT_START` (1e-7) of it: an origin on another surface), where this
     /// tracer's traversal, whose boxes are entered from the start on, may
     /// not reach what its test would hit: the caller then asks the
     /// traversal.
-    #[cfg(feature = "gpu")]
-    pub(crate) fn retest(
+    pub fn retest(
         &self,
         triangle: u32,
         origin: Vec3,
@@ -305,27 +183,6 @@ impl Tracer {
             shifted: t,
             triangle,
         })
-    }
-
-    /// Whether the ray from `origin` along `dir` up to `t_max` is occluded
-    /// when `triangle` (leaf order) is the only triangle its test may hit:
-    /// that test's answer, or `None` for a hit at the ray's very start
-    /// (within [`AT_START`]), which this tracer's traversal may not reach:
-    /// the caller then asks the traversal.
-    #[cfg(feature = "gpu")]
-    pub(crate) fn retest_occlusion(
-        &self,
-        triangle: u32,
-        origin: Vec3,
-        dir: Vec3,
-        t_max: f32,
-    ) -> Option<bool> {
-        let ray = shifted_ray(origin, dir, t_max);
-        let t = self.tris.get(triangle as usize)?.intersect(&ray);
-        if !t.is_finite() {
-            return Some(false);
-        }
-        (t > BOX_EPSILON_SHIFT + AT_START).then_some(true)
     }
 
     /// Whether `hit`, of a ray along `dir` traced without a cut (depth =
@@ -349,6 +206,27 @@ impl Tracer {
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<f32> {
         self.trace_closest(origin, dir, t_max, t_max)
             .map(|hit| hit.distance_within(t_max, t_max))
+    }
+}
+
+impl Settle for Tracer {
+    fn retest(
+        &self,
+        triangle: u32,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+        depth: f32,
+    ) -> Option<Hit> {
+        Tracer::retest(self, triangle, origin, dir, t_max, depth)
+    }
+
+    fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        Tracer::occluded(self, origin, dir, t_max)
+    }
+
+    fn trace_closest(&self, origin: Vec3, dir: Vec3, t_max: f32, depth: f32) -> Option<Hit> {
+        Tracer::trace_closest(self, origin, dir, t_max, depth)
     }
 }
 

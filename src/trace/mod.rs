@@ -4,27 +4,35 @@
 //! whether anything is hit closer than its max distance (occlusion) or
 //! the closest hit. Both faces occlude.
 //!
-//! - `batch`: [`RayBatch`] (origins, unit directions, max distances) and
-//!   [`for_each_receiver`], through which a pass casts its receivers' rays
+//! - `batch`: [`Query`] and [`for_each_receiver`], through which a pass casts its receivers' rays
 //!   as batches: each receiver emits its rays in order, the tracer answers
 //!   the batch, each receiver reads its answers in the same order. The
-//!   tracer decides how a batch is traced, so another backend (a GPU) fits
-//!   behind the same calls.
+//!   tracer decides how a batch is traced, so another backend fits behind
+//!   the same calls.
+//! - `backend`: the seam, [`Accelerator`]: a device answering whole
+//!   batches as the CPU backend does, attached to it ([`Tracer::attach`]).
+//! - `ray`: what the backends share: [`RayBatch`] (origins, unit
+//!   directions, max distances), the ray the CPU traces for a query
+//!   (shifted back), [`Hit`], the trees' inputs.
 //! - `bvh`: the CPU backend, [`Tracer`]: one obvhs CWBVH, answering one
 //!   ray at a time, which the batches use.
-//! - `gpu` (feature `gpu`): the GPU backend, wgpu compute shaders over
-//!   obvhs's BVH2 answering whole batches (occlusion and closest hits) when
-//!   attached to the tracer.
+//! - `gpu` (feature `gpu`): the GPU backend, an [`Accelerator`] of wgpu
+//!   compute shaders over obvhs's BVH2 answering whole batches (occlusion
+//!   and closest hits).
 //!
 //! Here too: robust ray origins ([`offset_origin`]).
 
+pub(crate) mod backend;
 pub(crate) mod batch;
 pub(crate) mod bvh;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub(crate) mod ray;
 
-pub use batch::{Closest, Occlusion, Query, RayBatch, for_each_receiver, for_each_receiver_query};
-pub use bvh::{Hit, Tracer};
+pub use backend::{Accelerator, Offer, Settle};
+pub use batch::{Closest, Occlusion, Query, for_each_receiver, for_each_receiver_query};
+pub use bvh::Tracer;
+pub use ray::{Hit, RayBatch};
 
 use glam::Vec3;
 

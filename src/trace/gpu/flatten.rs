@@ -6,7 +6,7 @@
 //! the triangles in leaf order with their indices among the occluders, and
 //! the tree's depth, which bounds the shader's stack.
 
-use crate::trace::bvh::{build_params, triangles};
+use crate::trace::ray::{build_params, triangles};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3A;
 use obvhs::{bvh2::builder::build_bvh2_from_tris, rt_triangle::RtTriangle};

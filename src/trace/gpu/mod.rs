@@ -32,7 +32,7 @@ pub use flatten::{FlatBvh, GpuNode, GpuTri, flatten};
 pub use timing::DispatchTimes;
 pub use tracer::{AUTO_SOFTWARE_VAR, GpuAnswer, GpuHit, GpuTracer, LOSE_AFTER_VAR, SHARE_VAR};
 
-use super::{Hit, RayBatch};
+use super::{Accelerator, Hit, Offer, RayBatch, Settle, Tracer};
 use crate::error::{Error, Result};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -68,7 +68,8 @@ pub struct AdapterName {
     pub software: bool,
 }
 
-/// A [`GpuTracer`] behind a CPU tracer ([`super::Tracer::attach_gpu`]):
+/// A [`GpuTracer`] behind a CPU tracer ([`GpuTracer::attach_to`]), as
+/// its [`Accelerator`]:
 /// answers its batches until one fails, then leaves every later
 /// batch to the CPU and keeps the first failure for the job to report.
 /// It shares the batches with the CPU: a batch offered while every
@@ -85,16 +86,13 @@ pub struct Attached {
     on_cpu: AtomicU64,
 }
 
-/// What became of rays offered to the GPU.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Offer {
-    /// Answered, as the CPU answers them.
-    Answered,
-    /// Every dispatch was in flight: nothing answered, for the CPU to
-    /// start on.
-    Busy,
-    /// The GPU has failed (now or before): the CPU answers every ray.
-    Failed,
+impl GpuTracer {
+    /// Attaches this tracer to `cpu` (which holds the same occluders) as
+    /// its accelerator: `cpu`'s batches go here first.
+    pub fn attach_to(self, cpu: &mut Tracer) {
+        let attached = Attached::new(self, cpu.leaf_order());
+        cpu.attach(Box::new(attached));
+    }
 }
 
 impl Attached {
@@ -139,25 +137,6 @@ impl Attached {
         self.tracer.reset_dispatch_times()
     }
 
-    /// The first failure, if a batch failed.
-    pub fn failure(&self) -> Option<&str> {
-        self.failure.get().map(String::as_str)
-    }
-
-    /// Rays of the batches so far answered by the GPU and by the CPU (the
-    /// GPU busy or failed).
-    pub fn rays(&self) -> (u64, u64) {
-        (
-            self.on_gpu.load(Ordering::Relaxed),
-            self.on_cpu.load(Ordering::Relaxed),
-        )
-    }
-
-    /// Counts `rays` of a batch answered by the CPU instead.
-    pub(crate) fn answered_on_cpu(&self, rays: usize) {
-        self.on_cpu.fetch_add(rays as u64, Ordering::Relaxed);
-    }
-
     /// What became of `rays` offered to `answer`: `Failed` once a batch
     /// has failed (this one's failure kept), when the CPU must answer.
     fn offer(&self, rays: usize, answer: impl FnOnce() -> Result<bool>) -> Offer {
@@ -179,17 +158,40 @@ impl Attached {
             }
         }
     }
+}
+
+impl Accelerator for Attached {
+    fn name(&self) -> &str {
+        &self.tracer.adapter().name
+    }
+
+    fn failure(&self) -> Option<&str> {
+        self.failure.get().map(String::as_str)
+    }
+
+    fn rays(&self) -> (u64, u64) {
+        (
+            self.on_gpu.load(Ordering::Relaxed),
+            self.on_cpu.load(Ordering::Relaxed),
+        )
+    }
+
+    fn answered_on_cpu(&self, rays: usize) {
+        self.on_cpu.fetch_add(rays as u64, Ordering::Relaxed);
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
 
     /// Answers the occlusion of rays `from..` of `rays` into `out` (one
     /// answer a ray from `from`) as `cpu` (the tracer this is attached to)
     /// answers it, if the GPU has a dispatch free and has not failed. The
-    /// GPU's sure answers stand; a ray it is unsure of (a candidate within
-    /// rounding of the test) is settled here, in parallel: by the CPU's
-    /// test on its one candidate where it had one (every other triangle a
-    /// sure miss), else by tracing it.
-    pub(crate) fn occluded_from(
+    /// GPU's sure answers stand; the rays it is unsure of (a candidate
+    /// within rounding of the test) are traced here, in parallel.
+    fn occluded_from(
         &self,
-        cpu: &super::Tracer,
+        cpu: &dyn Settle,
         rays: &RayBatch,
         from: usize,
         out: &mut [bool],
@@ -211,17 +213,10 @@ impl Attached {
                             || match answer {
                                 GpuAnswer::Miss => false,
                                 GpuAnswer::Hit => true,
-                                GpuAnswer::Unsure(candidate) => {
+                                GpuAnswer::Unsure => {
+                                    retraced += 1;
                                     let (o, d) = (rays.origins()[i], rays.directions()[i]);
-                                    let t_max = rays.t_max()[i];
-                                    let k = candidate.map(|k| self.to_cpu[k as usize]);
-                                    match k.and_then(|k| cpu.retest_occlusion(k, o, d, t_max)) {
-                                        Some(occluded) => occluded,
-                                        None => {
-                                            retraced += 1;
-                                            cpu.occluded(o, d, t_max)
-                                        }
-                                    }
+                                    cpu.occluded(o, d, rays.t_max()[i])
                                 }
                             };
                     }
@@ -241,9 +236,9 @@ impl Attached {
     /// test's (retested here); the rest (a near tie, which rounding or the
     /// CPU's traversal order decides, or a candidate within rounding of the
     /// test) are traced here. Settled in parallel.
-    pub(crate) fn closest_from(
+    fn closest_from(
         &self,
-        cpu: &super::Tracer,
+        cpu: &dyn Settle,
         rays: &RayBatch,
         from: usize,
         out: &mut [Option<Hit>],

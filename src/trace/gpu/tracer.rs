@@ -44,9 +44,9 @@ const NONE: u32 = u32::MAX;
 pub struct GpuHit {
     /// The triangle, in the tree's leaf order ([`GpuTracer::primitives`]).
     pub triangle: u32,
-    /// Whether it is the CPU's hit where the CPU's test hits it: no other
-    /// occluder's candidate is within rounding of its distance below the
-    /// cut (which one is "the" hit is then rounding's or the traversal
+    /// Whether it is the CPU's hit: the CPU's test surely hits it, no
+    /// other occluder's candidate is within rounding of its distance below
+    /// the cut (which one is "the" hit is then rounding's or the traversal
     /// order's choice), and the walk was whole. The host retests it for
     /// the CPU's distance.
     pub sure: bool,
@@ -59,10 +59,8 @@ pub enum GpuAnswer {
     Miss,
     /// A triangle the CPU's test surely hits: occluded.
     Hit,
-    /// A candidate only within rounding of the test: the CPU decides,
-    /// by retesting the one candidate (its triangle in leaf order) where
-    /// the ray had only one, else by tracing the ray.
-    Unsure(Option<u32>),
+    /// A candidate only within rounding of the test: the CPU decides.
+    Unsure,
 }
 
 /// The closest hit's answer flag (`UNSURE_BIT` in traverse.wgsl).
@@ -132,33 +130,14 @@ enum Kind {
 
 impl Kind {
     /// Words of the answers of `rays` rays: two bits a ray for
-    /// occlusion and the list of unsure rays' one candidates ([`Kind::list`]),
-    /// a word a ray for a closest hit.
+    /// occlusion, a word a ray for a closest hit.
     fn answer_words(self, rays: usize) -> usize {
         match self {
-            Kind::Occluded => {
-                let (at, cap) = self.list(rays);
-                at + 1 + 2 * cap
-            }
+            Kind::Occluded => rays.div_ceil(16),
             Kind::Closest => rays,
         }
     }
-
-    /// Where the list of unsure rays' one candidates starts in a dispatch's
-    /// answers (after the two-bit words), and how many it holds: room for
-    /// one ray in [`LIST_SHARE`] (a ray past it is traced on the host).
-    fn list(self, rays: usize) -> (usize, usize) {
-        match self {
-            Kind::Occluded => (rays.div_ceil(16), rays / LIST_SHARE + 16),
-            Kind::Closest => (0, 0),
-        }
-    }
 }
-
-/// One ray in this many has room in the list of unsure rays' candidates:
-/// about 1% of a real scene's rays are unsure (origins lying on another
-/// surface), so the list rarely fills.
-const LIST_SHARE: usize = 32;
 
 impl GpuTracer {
     /// Uploads `occluders` (bake space) to the first adapter `which`
@@ -369,15 +348,8 @@ impl GpuTracer {
                 *out = match (words[i / 16] >> (2 * (i % 16))) & 3 {
                     0 => GpuAnswer::Miss,
                     1 => GpuAnswer::Hit,
-                    _ => GpuAnswer::Unsure(None),
+                    _ => GpuAnswer::Unsure,
                 };
-            }
-            let (at, cap) = Kind::Occluded.list(count);
-            let listed = (words[at] as usize).min(cap);
-            for pair in words[at + 1..][..2 * listed].chunks_exact(2) {
-                if let Some(answer) = out.get_mut(pair[0] as usize) {
-                    *answer = GpuAnswer::Unsure(Some(pair[1]));
-                }
             }
         })?;
         if !traced {

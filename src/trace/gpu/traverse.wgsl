@@ -25,14 +25,12 @@
 // sure hit a hit on the CPU.
 // `occluded` writes two bits a ray (ANSWER_*: a sure hit; no candidate;
 // else unsure), sixteen rays a word, ray i at bits 2 (i % 16) of word
-// i / 16, and for an unsure ray with a single candidate, that candidate
-// in a list (params.list_at: the count, then ray and triangle pairs), so
-// that the host retests one triangle instead of tracing the ray.
-// `closest` writes answers[i] = the nearest candidate triangle (NONE for
-// none; its distance the host's retest gives), its top bit set
-// (UNSURE_BIT) when another occluder's candidate lies within WINDOW
-// (relative) of it below the cap, a near tie which rounding or the CPU's
-// traversal order decides, or the walk was left partial.
+// i / 16. `closest` writes answers[i] = the nearest candidate triangle
+// (NONE for none; its distance the host's retest gives), its top bit set
+// (UNSURE_BIT) when it is not a sure hit, or another occluder's candidate
+// lies within WINDOW (relative) of it or within their rounding bounds
+// below the cap (a near tie, which rounding or the CPU's traversal order
+// decides), or the walk was left partial.
 //
 // The box test widens each box's exit by 2 gamma_3 (Ize 2013, "Robust BVH
 // Ray Traversal") so rounding never culls a box the ray enters.
@@ -58,18 +56,15 @@ struct Ray {
 
 struct Params {
     count: u32,
-    // `occluded`: where the list of unsure rays' one candidates starts in
-    // `answers` (its length, then pairs of ray and triangle), and how
-    // many pairs it holds at most.
-    list_at: u32,
-    list_cap: u32,
-    _pad: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 };
 
 @group(0) @binding(0) var<storage, read> nodes: array<Node>;
 @group(0) @binding(1) var<storage, read> tris: array<Tri>;
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
-@group(0) @binding(3) var<storage, read_write> answers: array<atomic<u32>>;
+@group(0) @binding(3) var<storage, read_write> answers: array<u32>;
 @group(0) @binding(4) var<uniform> params: Params;
 @group(0) @binding(5) var<storage, read> occluder: array<u32>;
 
@@ -80,6 +75,7 @@ const EXIT_WIDEN: f32 = 1.0000004;
 const SHIFT: f32 = 2e-4;
 const NONE: u32 = 0xffffffffu;
 const MISS: f32 = -1.0;
+const INFINITY: f32 = 3.4e38;
 // The triangle test's margins (see above): far beyond a fused
 // multiply-add's rounding except at grazing angles, and thin enough that
 // a candidate the CPU misses is rare.
@@ -96,8 +92,6 @@ const ANSWER_MISS: u32 = 0u;
 const ANSWER_HIT: u32 = 1u;
 const ANSWER_UNSURE: u32 = 2u;
 const UNSURE_BIT: u32 = 0x80000000u;
-// Several candidates that are not sure (`Found::doubt`).
-const MANY: u32 = 0xfffffffeu;
 
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     // In the CPU's order: (x + y) + z.
@@ -119,6 +113,9 @@ struct Test {
     // Whether the CPU's test surely hits it in (t_sure, t_max]: every
     // barycentric and both ends of the range clear the rounding bound.
     sure: bool,
+    // The bound on t's rounding (either test's t lies within it of the
+    // exact one); infinite where the determinant's sign is not sure.
+    err: f32,
 };
 
 // The triangle's test (the CPU's, with the margins) for the ray from o
@@ -131,7 +128,7 @@ fn candidate(tri: Tri, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, t_sur
     let r = vec3<f32>(d.y * c.z - c.y * d.z, d.z * c.x - c.z * d.x, d.x * c.y - c.x * d.y);
     let det = dot3(tri.ng.xyz, d);
     if det == 0.0 {
-        return Test(MISS, false);
+        return Test(MISS, false, 0.0);
     }
     let inv_det = 1.0 / det;
     let u = dot3(r, tri.e2.xyz) * inv_det;
@@ -155,13 +152,14 @@ fn candidate(tri: Tri, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, t_sur
     let inside = u >= -max(BARY_MARGIN, eu) && v >= -max(BARY_MARGIN, ev) && w >= -max(BARY_MARGIN, ew);
     let in_range = t >= min(t_min * (1.0 - T_MARGIN), t_min - et) && t <= max(t_max * (1.0 + T_MARGIN), t_max + et);
     if !(inside && in_range) {
-        return Test(MISS, false);
+        return Test(MISS, false, 0.0);
     }
     // Sure: a determinant whose sign rounding cannot flip, the hit inside
     // the triangle and the range by more than the bounds. (A NaN fails
     // every comparison: never sure.)
     let sure = adet > 2.0 * det_err && u > eu && v > ev && w > ew && t > t_sure + et && t < t_end - et;
-    return Test(max(t, 0.0), sure);
+    let err = select(INFINITY, et, adet > 2.0 * det_err);
+    return Test(max(t, 0.0), sure, err);
 }
 
 // Where the ray enters the node's box within [0, t_end], else MISS.
@@ -179,17 +177,16 @@ struct Found {
     t: f32,
     tri: u32,
     // Whether the answer is final: for `occluded`, a sure hit or no
-    // candidate at all; for `closest`, no other occluder's candidate is
-    // within WINDOW of the nearest (the host retests that one).
+    // candidate at all; for `closest`, the nearest candidate is a sure hit
+    // and no other occluder's candidate is near it (`near`).
     sure: bool,
-    // `occluded`: the one candidate that is not sure, NONE for none, MANY
-    // for several (or a walk left partial).
-    doubt: u32,
 };
 
-// Whether two candidates' t are a near tie.
-fn near(a: f32, b: f32) -> bool {
-    return abs(a - b) <= WINDOW * max(a, b);
+// Whether two candidates' t are a near tie: nearer each other than
+// WINDOW (relative) or than their rounding bounds together, so that the
+// CPU's tests may order them otherwise.
+fn near(a: f32, b: f32, err: f32) -> bool {
+    return abs(a - b) <= max(WINDOW * max(a, b), err);
 }
 
 // The traversal both entry points share: with `any`, a sure hit ends the
@@ -197,7 +194,7 @@ fn near(a: f32, b: f32) -> bool {
 // the nearest candidate, each candidate's t capped at `cap`.
 fn traverse(ray: Ray, any: bool) -> Found {
     let end = ray.origin.w;
-    var found = Found(end, NONE, true, NONE);
+    var found = Found(end, NONE, true);
     let d = ray.dir.xyz;
     let o = ray.origin.xyz;
     let cap = ray.dir.w;
@@ -211,8 +208,11 @@ fn traverse(ray: Ray, any: bool) -> Found {
     if enter_box(nodes[0], o, inv, reach) == MISS {
         return found;
     }
-    // Another occluder's candidate within WINDOW of the nearest (closest).
+    // Another occluder's candidate within WINDOW of the nearest (closest),
+    // or within their rounding bounds.
     var tied = false;
+    // The nearest candidate's rounding bound on t.
+    var found_err = 0.0;
     // A node left unvisited (the stack full): no miss is sure.
     var partial = false;
     // Nodes to visit with where the ray enters them: a node entered
@@ -231,20 +231,20 @@ fn traverse(ray: Ray, any: bool) -> Found {
                 }
                 if any {
                     if hit.sure {
-                        return Found(hit.t, k, true, NONE);
+                        return Found(hit.t, k, true);
                     }
                     found.sure = false;
-                    found.doubt = select(MANY, k, found.doubt == NONE);
                     continue;
                 }
                 let t = min(hit.t, cap);
                 let other = found.tri != NONE && occluder[k] != occluder[found.tri];
                 if found.tri == NONE || t < found.t {
                     // The one it replaces, if near, is a tie of the new.
-                    tied = other && found.t < cap && near(t, found.t);
-                    found = Found(t, k, true, NONE);
+                    tied = other && found.t < cap && near(t, found.t, hit.err + found_err);
+                    found = Found(t, k, hit.sure);
+                    found_err = hit.err;
                     reach = min(found.t * (1.0 + WINDOW), reach);
-                } else if other && t < cap && near(t, found.t) {
+                } else if other && t < cap && near(t, found.t, hit.err + found_err) {
                     tied = true;
                 }
             }
@@ -290,9 +290,6 @@ fn traverse(ray: Ray, any: bool) -> Found {
     if tied || partial {
         found.sure = false;
     }
-    if partial {
-        found.doubt = MANY;
-    }
     return found;
 }
 
@@ -300,7 +297,7 @@ fn traverse(ray: Ray, any: bool) -> Found {
 fn trace(i: u32, any: bool) -> Found {
     let ray = rays[i];
     if ray.origin.w < 0.0 {
-        return Found(0.0, NONE, true, NONE);
+        return Found(0.0, NONE, true);
     }
     return traverse(ray, any);
 }
@@ -323,20 +320,11 @@ fn occluded(@builtin(global_invocation_id) id: vec3<u32>, @builtin(local_invocat
             code = ANSWER_HIT;
         }
         atomicOr(&words[local / 16u], code << (2u * (local % 16u)));
-        // The one candidate of an unsure ray, for the host's retest.
-        if !found.sure && found.doubt != MANY {
-            let k = atomicAdd(&answers[params.list_at], 1u);
-            if k < params.list_cap {
-                let at = params.list_at + 1u + 2u * k;
-                atomicStore(&answers[at], id.x);
-                atomicStore(&answers[at + 1u], found.doubt);
-            }
-        }
     }
     workgroupBarrier();
     let word = id.x / 16u;
     if local % 16u == 0u && 16u * word < params.count {
-        atomicStore(&answers[word], atomicLoad(&words[local / 16u]));
+        answers[word] = atomicLoad(&words[local / 16u]);
     }
 }
 
@@ -345,6 +333,6 @@ fn closest(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
     if i < params.count {
         let found = trace(i, false);
-        atomicStore(&answers[i], select(found.tri | UNSURE_BIT, found.tri, found.sure || found.tri == NONE));
+        answers[i] = select(found.tri | UNSURE_BIT, found.tri, found.sure || found.tri == NONE);
     }
 }

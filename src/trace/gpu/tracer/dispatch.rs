@@ -10,7 +10,7 @@
 use super::{GpuTracer, IN_FLIGHT, Kind, RAYS_PER_DISPATCH, Stage, WORKGROUP, one_line};
 use crate::error::{Error, Result};
 use crate::trace::RayBatch;
-use crate::trace::bvh::{Hit, shifted_ray};
+use crate::trace::ray::{Hit, shifted_ray};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 
@@ -145,14 +145,9 @@ impl GpuTracer {
         let uploading = std::time::Instant::now();
         self.timing.dispatched(n);
         let queue = &self.queue;
-        let (list_at, list_cap) = kind.list(n);
-        let params = [n as u32, list_at as u32, list_cap as u32, 0];
-        queue.write_buffer(&s.params, 0, bytemuck::cast_slice(&params));
+        queue.write_buffer(&s.params, 0, bytemuck::cast_slice(&[n as u32, 0, 0, 0]));
         let bytes = 4 * kind.answer_words(n) as u64;
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        if list_cap > 0 {
-            encoder.clear_buffer(&s.answers, 4 * list_at as u64, Some(4));
-        }
         encoder.copy_buffer_to_buffer(&staging.buffer, 0, &s.rays, 0, n as u64 * RAY_BYTES);
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -294,11 +289,7 @@ impl GpuTracer {
         use wgpu::BufferUsages as U;
         let n = capacity as u64;
         let rays = buffer("rays", n * RAY_BYTES, U::STORAGE | U::COPY_DST);
-        let answers = buffer(
-            "answers",
-            n * ANSWER_BYTES,
-            U::STORAGE | U::COPY_SRC | U::COPY_DST,
-        );
+        let answers = buffer("answers", n * ANSWER_BYTES, U::STORAGE | U::COPY_SRC);
         let readback = buffer(
             "readback",
             n * ANSWER_BYTES + TIMESTAMP_BYTES,
