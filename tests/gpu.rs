@@ -239,6 +239,47 @@ fn a_scene_occludes_as_on_the_cpu() {
     assert!(differ * 10_000 <= n, "{differ} of {n} differ");
 }
 
+/// Rays that end exactly where they hit, as the passes cast them (a max
+/// distance read from an earlier closest hit): the CPU's test counts a hit
+/// at the ray's end and its traversal does not, so an occlusion answer
+/// settled by the test alone would differ there. From random helmet rays,
+/// each cast again up to its own hit's distance and up to a hair beyond:
+/// the GPU answers all of them as the CPU does, and the comparison is not
+/// vacuous (both answers occur).
+#[test]
+fn rays_ending_at_their_hit_are_answered_as_on_the_cpu() {
+    let (occluders, probe) = helmet_rays(40_000);
+    let Some(gpu) = gpu(&occluders) else {
+        return;
+    };
+    let cpu = Tracer::new(&occluders);
+    let mut rays = RayBatch::new();
+    for i in 0..probe.len() {
+        let (o, d, t_max) = (probe.origins()[i], probe.directions()[i], probe.t_max()[i]);
+        if let Some(t) = cpu.closest_hit(o, d, t_max) {
+            for end in [t, t.next_up(), t.next_down()] {
+                rays.push(o, d, end);
+            }
+        }
+    }
+    let tracer = attached(&occluders, gpu);
+    let (mut on_gpu, mut on_cpu) = (Vec::new(), Vec::new());
+    tracer.occluded_batch(&rays, &mut on_gpu);
+    cpu.occluded_batch(&rays, &mut on_cpu);
+    assert_eq!(tracer.accelerator_failure(), None);
+    let n = rays.len();
+    let occluded = on_cpu.iter().filter(|&&h| h).count();
+    let differ = on_gpu.iter().zip(&on_cpu).filter(|(a, b)| a != b).count();
+    eprintln!(
+        "{n} rays ending at their hit, {occluded} occluded on the CPU, {differ} answered otherwise"
+    );
+    assert!(
+        occluded > n / 10 && occluded < n * 9 / 10,
+        "{occluded} of {n}"
+    );
+    assert_eq!(differ, 0, "{differ} of {n} differ");
+}
+
 /// How many of two answers to `rays`' closest hits (each naming `cpu`'s
 /// triangles) differ where a pass reads them: the distance cut at the
 /// ray's depth, and for a ray traced uncut the triangle's normal and

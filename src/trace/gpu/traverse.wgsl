@@ -105,6 +105,9 @@ fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
 // at most 8 (a cross product, a dot product, the division): twice the
 // chain, for the two tests. Higham's gamma_n = n eps bound; eps = 2^-24.
 const SURE_GAMMA: f32 = 9.536743e-7;
+// Four times the smallest normal f32: what flushing a product's subnormal
+// result to zero (as GPUs may) can change a sum of three by.
+const FLUSH: f32 = 4.7e-38;
 
 // What a triangle's test says of a ray.
 struct Test {
@@ -114,7 +117,8 @@ struct Test {
     // barycentric and both ends of the range clear the rounding bound.
     sure: bool,
     // The bound on t's rounding (either test's t lies within it of the
-    // exact one); infinite where the determinant's sign is not sure.
+    // exact one); infinite where the determinant's sign is not sure (t is
+    // then the range's start, unknown).
     err: f32,
 };
 
@@ -127,39 +131,47 @@ fn candidate(tri: Tri, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32, t_sur
     // d x c as glam computes it.
     let r = vec3<f32>(d.y * c.z - c.y * d.z, d.z * c.x - c.z * d.x, d.x * c.y - c.x * d.y);
     let det = dot3(tri.ng.xyz, d);
-    if det == 0.0 {
-        return Test(MISS, false, 0.0);
+    let nc = dot3(tri.ng.xyz, c);
+    // The rounding bounds: each operand's magnitude through the same
+    // operations (and FLUSH for products a GPU may flush to zero), the
+    // division's relative error through |det|.
+    let ad = abs(d);
+    let ac = abs(c);
+    let an = abs(tri.ng.xyz);
+    let adet = abs(det);
+    let det_err = SURE_GAMMA * dot(an, ad) + FLUSH;
+    let nc_err = SURE_GAMMA * dot(an, ac) + FLUSH;
+    if adet <= 2.0 * det_err {
+        // The determinant's sign, or its being zero, is rounding's: the
+        // CPU's test may hit where this one cannot tell. Only a ray that
+        // stays off the triangle's plane beyond its range is a sure miss.
+        if abs(nc) - nc_err > t_max * (adet + 2.0 * det_err) {
+            return Test(MISS, false, 0.0);
+        }
+        return Test(max(t_min, 0.0), false, INFINITY);
     }
     let inv_det = 1.0 / det;
     let u = dot3(r, tri.e2.xyz) * inv_det;
     let v = dot3(r, tri.e1.xyz) * inv_det;
     let w = 1.0 - u - v;
-    let t = dot3(tri.ng.xyz, c) * inv_det;
-    // The rounding bounds: each operand's magnitude through the same
-    // operations, the division's relative error through |det|.
-    let ad = abs(d);
-    let ac = abs(c);
+    let t = nc * inv_det;
     let big_r = vec3<f32>(ad.y * ac.z + ac.y * ad.z, ad.z * ac.x + ac.z * ad.x, ad.x * ac.y + ac.x * ad.y);
-    let an = abs(tri.ng.xyz);
-    let adet = abs(det);
-    let det_err = SURE_GAMMA * dot(an, ad);
     let scale = 1.0 / adet;
-    let eu = SURE_GAMMA * dot(big_r, abs(tri.e2.xyz)) * scale + abs(u) * det_err * scale;
-    let ev = SURE_GAMMA * dot(big_r, abs(tri.e1.xyz)) * scale + abs(v) * det_err * scale;
+    let eu = (SURE_GAMMA * dot(big_r, abs(tri.e2.xyz)) + FLUSH) * scale + abs(u) * det_err * scale;
+    let ev = (SURE_GAMMA * dot(big_r, abs(tri.e1.xyz)) + FLUSH) * scale + abs(v) * det_err * scale;
     let ew = eu + ev + SURE_GAMMA * (1.0 + abs(u) + abs(v));
-    let et = SURE_GAMMA * dot(an, ac) * scale + abs(t) * det_err * scale;
+    let et = nc_err * scale + abs(t) * det_err * scale;
     // A candidate within the margins or the bounds, whichever is wider.
     let inside = u >= -max(BARY_MARGIN, eu) && v >= -max(BARY_MARGIN, ev) && w >= -max(BARY_MARGIN, ew);
     let in_range = t >= min(t_min * (1.0 - T_MARGIN), t_min - et) && t <= max(t_max * (1.0 + T_MARGIN), t_max + et);
     if !(inside && in_range) {
         return Test(MISS, false, 0.0);
     }
-    // Sure: a determinant whose sign rounding cannot flip, the hit inside
-    // the triangle and the range by more than the bounds. (A NaN fails
-    // every comparison: never sure.)
-    let sure = adet > 2.0 * det_err && u > eu && v > ev && w > ew && t > t_sure + et && t < t_end - et;
-    let err = select(INFINITY, et, adet > 2.0 * det_err);
-    return Test(max(t, 0.0), sure, err);
+    // Sure: the hit inside the triangle and the range by more than the
+    // bounds (the determinant's sign is sure above). A NaN fails every
+    // comparison: never sure.
+    let sure = u > eu && v > ev && w > ew && t > t_sure + et && t < t_end - et;
+    return Test(max(t, 0.0), sure, et);
 }
 
 // Where the ray enters the node's box within [0, t_end], else MISS.
