@@ -79,7 +79,7 @@ impl Tracer {
     }
 
     /// Per triangle in this tracer's leaf order (as [`Hit`]s and
-    /// [`Tracer::retest`] name them), its index among the occluders given.
+    /// [`Settle::retest`](super::Settle::retest) name them), its index among the occluders given.
     pub fn leaf_order(&self) -> &[u32] {
         self.bvh.as_ref().map_or(&[][..], |b| &b.primitive_indices)
     }
@@ -155,36 +155,6 @@ impl Tracer {
         })
     }
 
-    /// The hit [`Tracer::trace_closest`] returns when `triangle` (in leaf
-    /// order) is the closest: its test on the same ray, cut at `depth`
-    /// (for an accelerator settling what its device left open);
-    /// `None` where the test misses it, or hits it at the ray's very start
-    /// (within `AT_START` (1e-7) of it: an origin on another surface), where this
-    /// tracer's traversal, whose boxes are entered from the start on, may
-    /// not reach what its test would hit: the caller then asks the
-    /// traversal.
-    pub fn retest(
-        &self,
-        triangle: u32,
-        origin: Vec3,
-        dir: Vec3,
-        t_max: f32,
-        depth: f32,
-    ) -> Option<Hit> {
-        let ray = shifted_ray(origin, dir, t_max);
-        let t = self.tris.get(triangle as usize)?.intersect(&ray);
-        if t <= BOX_EPSILON_SHIFT + AT_START {
-            return None;
-        }
-        // The traversal's rules: a miss is infinite, a hit beyond the cap
-        // one at it, and a hit counts below the ray's end only.
-        let t = t.is_finite().then(|| t.min(Hit::cap(t_max, depth)))?;
-        (t < ray.tmax).then_some(Hit {
-            shifted: t,
-            triangle,
-        })
-    }
-
     /// Whether `hit`, of a ray along `dir` traced without a cut (depth =
     /// t_max), is the back face of a single-sided triangle. Front faces are
     /// counter-clockwise; obvhs stores `ng = (v0 - v1) x (v2 - v0)`, the
@@ -210,6 +180,14 @@ impl Tracer {
 }
 
 impl Settle for Tracer {
+    /// The hit [`Tracer::trace_closest`] returns when `triangle` (in leaf
+    /// order) is the closest: its test on the same ray, cut at `depth`
+    /// (for an accelerator settling what its device left open);
+    /// `None` where the test misses it, or hits it at the ray's very start
+    /// (within `AT_START` (1e-7) of it: an origin on another surface), where this
+    /// tracer's traversal, whose boxes are entered from the start on, may
+    /// not reach what its test would hit: the caller then asks the
+    /// traversal.
     fn retest(
         &self,
         triangle: u32,
@@ -218,7 +196,18 @@ impl Settle for Tracer {
         t_max: f32,
         depth: f32,
     ) -> Option<Hit> {
-        Tracer::retest(self, triangle, origin, dir, t_max, depth)
+        let ray = shifted_ray(origin, dir, t_max);
+        let t = self.tris.get(triangle as usize)?.intersect(&ray);
+        if t <= BOX_EPSILON_SHIFT + AT_START {
+            return None;
+        }
+        // The traversal's rules: a miss is infinite, a hit beyond the cap
+        // one at it, and a hit counts below the ray's end only.
+        let t = t.is_finite().then(|| t.min(Hit::cap(t_max, depth)))?;
+        (t < ray.tmax).then_some(Hit {
+            shifted: t,
+            triangle,
+        })
     }
 
     fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {

@@ -54,13 +54,13 @@ impl Hit {
 /// the triangle test's t_min still excludes everything behind the origin.
 pub(crate) const BOX_EPSILON_SHIFT: f32 = 2e-4;
 
-/// How near the ray's start a hit leaves [`Tracer::retest`] to the
+/// How near the ray's start a hit leaves [`Settle::retest`] to the
 /// traversal (bake units): origins lying on another surface, hit at
 /// distances of 1e-8, which the traversal missed where the test hit
 /// (a few rays from border-fit points in Sponza's bake); far below any
 /// modelled gap ([`crate::trace::ORIGIN_OFFSET`] is 2e-6).
 ///
-/// [`Tracer::retest`]: super::Tracer::retest
+/// [`Settle::retest`]: super::Settle::retest
 pub(crate) const AT_START: f32 = 1e-7;
 
 /// The ray the CPU traces for a query from `origin` along `dir` up to

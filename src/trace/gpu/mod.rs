@@ -137,6 +137,34 @@ impl Attached {
         self.tracer.reset_dispatch_times()
     }
 
+    /// The GPU's answers `found` to rays `from..` settled into `out`, in
+    /// parallel pieces: `settle(i, answer, retraced)` gives ray `i`'s
+    /// answer and counts in `retraced` the rays it traced again on the CPU.
+    /// The stage's time and the count go to the tracer's timing.
+    fn settle<F: Sync, T: Send>(
+        &self,
+        from: usize,
+        found: &[F],
+        out: &mut [T],
+        settle: impl Fn(usize, &F, &mut usize) -> T + Sync,
+    ) {
+        let settling = std::time::Instant::now();
+        let retraced: usize = (out.par_chunks_mut(SETTLE_PIECE))
+            .zip(found.par_chunks(SETTLE_PIECE))
+            .enumerate()
+            .map(|(k, (out, found))| {
+                let mut retraced = 0;
+                let first = from + k * SETTLE_PIECE;
+                for ((i, answer), out) in (first..).zip(found).zip(out) {
+                    *out = settle(i, answer, &mut retraced);
+                }
+                retraced
+            })
+            .sum();
+        self.tracer.timing.retraced(retraced);
+        self.tracer.timing.add(timing::Stage::Settle, settling);
+    }
+
     /// What became of `rays` offered to `answer`: `Failed` once a batch
     /// has failed (this one's failure kept), when the CPU must answer.
     fn offer(&self, rays: usize, answer: impl FnOnce() -> Result<bool>) -> Offer {
@@ -201,30 +229,18 @@ impl Accelerator for Attached {
             if !self.tracer.occlusion_from(rays, from, false, &mut found)? {
                 return Ok(false);
             }
-            let settling = std::time::Instant::now();
-            let retraced: usize = (out.par_chunks_mut(SETTLE_PIECE))
-                .zip(found.par_chunks(SETTLE_PIECE))
-                .enumerate()
-                .map(|(k, (out, found))| {
-                    let mut retraced = 0;
-                    let first = from + k * SETTLE_PIECE;
-                    for ((i, &answer), out) in (first..).zip(found).zip(out) {
-                        *out = rays.is_blocked(i)
-                            || match answer {
-                                GpuAnswer::Miss => false,
-                                GpuAnswer::Hit => true,
-                                GpuAnswer::Unsure => {
-                                    retraced += 1;
-                                    let (o, d) = (rays.origins()[i], rays.directions()[i]);
-                                    cpu.occluded(o, d, rays.t_max()[i])
-                                }
-                            };
+            self.settle(from, &found, out, |i, &answer, retraced| {
+                rays.is_blocked(i)
+                    || match answer {
+                        GpuAnswer::Miss => false,
+                        GpuAnswer::Hit => true,
+                        GpuAnswer::Unsure => {
+                            *retraced += 1;
+                            let (o, d) = (rays.origins()[i], rays.directions()[i]);
+                            cpu.occluded(o, d, rays.t_max()[i])
+                        }
                     }
-                    retraced
-                })
-                .sum();
-            self.tracer.timing.retraced(retraced);
-            self.tracer.timing.add(timing::Stage::Settle, settling);
+            });
             Ok(true)
         })
     }
@@ -248,32 +264,20 @@ impl Accelerator for Attached {
             if !self.tracer.closest_from(rays, from, false, &mut found)? {
                 return Ok(false);
             }
-            let settling = std::time::Instant::now();
-            let retraced: usize = (out.par_chunks_mut(SETTLE_PIECE))
-                .zip(found.par_chunks(SETTLE_PIECE))
-                .enumerate()
-                .map(|(k, (out, found))| {
-                    let mut retraced = 0;
-                    let first = from + k * SETTLE_PIECE;
-                    for ((i, hit), out) in (first..).zip(found).zip(out) {
-                        *out = hit.and_then(|hit| {
-                            let (o, d) = (rays.origins()[i], rays.directions()[i]);
-                            let (t_max, depth) = (rays.t_max()[i], rays.depths()[i]);
-                            let triangle = self.to_cpu[hit.triangle as usize];
-                            match cpu.retest(triangle, o, d, t_max, depth) {
-                                Some(found) if hit.sure => Some(found),
-                                _ => {
-                                    retraced += 1;
-                                    cpu.trace_closest(o, d, t_max, depth)
-                                }
-                            }
-                        });
+            self.settle(from, &found, out, |i, hit, retraced| {
+                hit.and_then(|hit| {
+                    let (o, d) = (rays.origins()[i], rays.directions()[i]);
+                    let (t_max, depth) = (rays.t_max()[i], rays.depths()[i]);
+                    let triangle = self.to_cpu[hit.triangle as usize];
+                    match cpu.retest(triangle, o, d, t_max, depth) {
+                        Some(found) if hit.sure => Some(found),
+                        _ => {
+                            *retraced += 1;
+                            cpu.trace_closest(o, d, t_max, depth)
+                        }
                     }
-                    retraced
                 })
-                .sum();
-            self.tracer.timing.retraced(retraced);
-            self.tracer.timing.add(timing::Stage::Settle, settling);
+            });
             Ok(true)
         })
     }
