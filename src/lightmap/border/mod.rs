@@ -310,7 +310,7 @@ pub const SEAM_SCALE: f64 = 2.0;
 /// of part of a page, [`super::build`]); a point whose cell has a tap not
 /// known is not traced and becomes a row whose target is NaN in every
 /// channel, so that the solve leaves whatever it ties not known. Returns
-/// the anchors and the rays cast, the layer's included (the inside test's
+/// the anchors and the rays cast at points outside geometry, the layer's included (the inside test's
 /// not counted).
 #[allow(clippy::too_many_arguments)]
 pub fn anchors(
@@ -357,14 +357,30 @@ pub fn anchors(
     }
     let params = BakeParams { max_distance, seed };
     let inside = validity::inside_geometry(&r, tracer, max_distance, seed);
+    // A point inside geometry is left out of the fit, so its rays are not
+    // traced: the others' rays are keyed by their blocks, not by their
+    // places in the list, and come out the same without it.
+    let outside: Vec<FitPoint> = (points.iter().zip(&inside))
+        .filter(|&(_, &i)| !i)
+        .map(|(p, _)| *p)
+        .collect();
+    if outside.len() < points.len() {
+        r = Receivers {
+            width,
+            height,
+            ..Default::default()
+        };
+        for p in &outside {
+            r.push_surface_point(p.block, &tris[p.tri as usize], p.bary, true);
+        }
+    }
     let (w, h) = (width as f32, height as f32);
     let uv = |p: &FitPoint| [p.uv.x / w, p.uv.y / h];
-    let slots: Vec<u32> = points.iter().map(|p| p.slot).collect();
+    let slots: Vec<u32> = outside.iter().map(|p| p.slot).collect();
     let (traced, v) = targets(&r, &slots, tracer, &params, layer);
-    let anchors: Vec<Anchor> = points
+    let anchors: Vec<Anchor> = outside
         .iter()
         .enumerate()
-        .filter(|&(k, _)| !inside[k])
         .map(|(k, p)| {
             let mut target = Vec::with_capacity(1 + SH_COUNT + VIS_COUNT);
             target.push(traced[k].0);
@@ -379,7 +395,7 @@ pub fn anchors(
             }
         })
         .collect();
-    let n = points.len() as u64;
+    let n = outside.len() as u64;
     let rays = n * FIT_RAYS as u64
         + if layer {
             n * FIT_VISIBILITY_RAYS as u64
@@ -479,6 +495,58 @@ mod tests {
             let y = both.iter().find(|y| y.uv == x.uv).expect("the same point");
             assert_eq!(x.target, y.target, "{:?}", x.uv);
         }
+    }
+
+    #[test]
+    fn points_inside_geometry_trace_no_rays() {
+        // A 4 x 4 texel square (world x in [1, 5]) whose half x < 3 lies
+        // inside a closed single-sided box: the points there leave the
+        // fit, and only the points outside trace their rays.
+        let sq = square_at(Vec2::new(1.0, 1.0), 4.0, Vec3::ZERO);
+        let (lo, hi) = (Vec3A::new(-10.0, -10.0, -1.0), Vec3A::new(3.0, 10.0, 1.0));
+        let corner = |i: usize| {
+            Vec3A::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        };
+        let faces = [
+            [0, 2, 6, 4],
+            [1, 3, 7, 5],
+            [0, 1, 5, 4],
+            [2, 3, 7, 6],
+            [0, 1, 3, 2],
+            [4, 5, 7, 6],
+        ];
+        let centre = (lo + hi) * 0.5;
+        let mut box_tris = Vec::new();
+        for f in faces {
+            for [a, b, c] in [[f[0], f[1], f[2]], [f[0], f[2], f[3]]] {
+                let (a, mut b, mut c) = (corner(a), corner(b), corner(c));
+                // Wound to face out of the box.
+                if (b - a).cross(c - a).dot(a - centre) < 0.0 {
+                    std::mem::swap(&mut b, &mut c);
+                }
+                box_tris.push([a, b, c]);
+            }
+        }
+        let tracer = Tracer::with_sides(&box_tris, &vec![true; box_tris.len()]);
+        let all = vec![true; 100];
+        let every = points(&sq, 10, 10, &all, &all, 5).len();
+        let (anchors, rays) = anchors(&sq, 10, 10, &all, &all, None, &tracer, 3.0, 5, false);
+        assert!(every > 40, "{every}");
+        // About half the points lie inside (x < 3 of x in [1, 5]).
+        assert!(
+            anchors.len() > every / 3 && anchors.len() < 2 * every / 3,
+            "{} of {every}",
+            anchors.len()
+        );
+        assert!(
+            anchors.iter().all(|a| a.uv[0] * 10.0 > 2.9),
+            "a point inside kept"
+        );
+        assert_eq!(rays, anchors.len() as u64 * FIT_RAYS as u64);
     }
 
     #[test]
