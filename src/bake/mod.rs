@@ -11,7 +11,8 @@
 //! - [`sheared`]: the sheared filter of Egan et al. 2011 (`--method
 //!   sheared`), sparse rays shared between neighbouring receivers;
 //! - `visibility`: the visibility layer v (16 SH coefficients of V
-//!   itself, uniform rays), for `mc` and (filtered) `adaptive`;
+//!   itself), for `mc` (uniform rays) and (filtered) `adaptive` (the
+//!   bake's own rays in the cap, uniform rays in the band at the horizon);
 //! - [`validity`]: which receivers lie inside or behind geometry (their
 //!   texels are filled, not shown): a stage before Monte Carlo and the
 //!   sheared method, made by the adaptive method's pre-pass on the same

@@ -4,10 +4,14 @@
 //! BRDF k, evaluated per pixel).
 //!
 //! In: [`Receivers`], a [`Tracer`], a ray count per receiver and
-//! [`BakeParams`]. Out: per receiver the occluded share above its
-//! geometric plane (less, 16 coefficients) from stratified
-//! uniform-hemisphere rays around its shading normal n ([`shares`]), which
-//! the adaptive method filters like its SH; [`finish`] turns a share into
+//! [`BakeParams`] (and for [`shares_cap_band`] the receivers' cap sums of
+//! their cosine-weighted rays, [`CapSums`]). Out: per receiver the
+//! occluded share above its geometric plane (less, 16 coefficients) from
+//! stratified uniform-hemisphere rays around its shading normal n
+//! ([`shares`], Monte Carlo's), or from its own cosine-weighted rays in the
+//! cap and uniform rays in the band at the horizon ([`shares_cap_band`],
+//! the adaptive bake's and the border fit's), which the adaptive method
+//! filters like its SH; [`finish`] turns a share into
 //! v_i = Int V(w) H(n.w) Y_i(w) dw.
 //!
 //! The integrand has no cosine, so the rays are uniform in solid angle
@@ -26,7 +30,7 @@ use crate::atlas::Receivers;
 use crate::sample::uniform_hemisphere;
 use crate::sh::{self, VIS_COUNT};
 use crate::trace::{RayBatch, Tracer, for_each_receiver};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// The receiver sequence of the visibility rays (the bake's is stream 0,
@@ -64,12 +68,27 @@ fn emit_receiver(
     p: &BakeParams,
     batch: &mut RayBatch,
 ) {
+    emit_rays(receivers, r, first, rays, 1.0, p, batch)
+}
+
+/// [`emit_receiver`]'s rays, uniform over the zone of the hemisphere
+/// where cos theta < `top` (1: all of it; [`CAP_COS`]: the band).
+fn emit_rays(
+    receivers: &Receivers,
+    r: usize,
+    first: u32,
+    rays: u32,
+    top: f32,
+    p: &BakeParams,
+    batch: &mut RayBatch,
+) {
     let geo = receivers.geo_normal[r];
     let sequence = ReceiverRays::with_stream(receivers, r, p.seed, VISIBILITY_STREAM);
     for i in first..first + rays {
+        let u = sequence.point(i);
         let dir = sequence
             .frame
-            .to_world(uniform_hemisphere(sequence.point(i)))
+            .to_world(uniform_hemisphere(Vec2::new(u.x * top, u.y)))
             .normalize();
         if dir.dot(geo) > 0.0 {
             batch.push(sequence.origin, dir, p.max_distance);
@@ -171,5 +190,285 @@ pub fn bake(receivers: &Receivers, tracer: &Tracer, rays: u32, p: &BakeParams) -
     Visibility {
         v: finish(receivers, s),
         rays: receivers.len() as u64 * rays as u64,
+    }
+}
+
+/// Where the layer takes the bake's own rays: the cap of n's hemisphere
+/// with cos theta >= `CAP_COS`. There a cosine-weighted ray estimates the
+/// cosine-free integrand with weight pi / cos theta, bounded by
+/// pi / `CAP_COS`; towards the horizon that weight grows without bound
+/// (infinite variance), so the band below the cap takes uniform rays of
+/// its own ([`band_rays`]). At 0.25 the band is a quarter of the
+/// hemisphere's solid angle and a cap ray's weight at most twice a
+/// uniform ray's (`docs/measurements/border-fit-cost.md`, the layer from
+/// the bake's rays).
+pub const CAP_COS: f32 = 0.25;
+
+/// How many times fewer band rays a receiver gets than its cosine-weighted
+/// ones, and the fewest: the band's quarter of the solid angle then sees
+/// the density of uniform rays over the whole hemisphere at half the
+/// cosine count, as before the cap took the bake's rays.
+pub const BAND_DIVISOR: u32 = 8;
+pub const MIN_BAND_RAYS: u32 = 4;
+
+/// The band rays of a receiver with `rays` cosine-weighted ones.
+#[inline]
+pub const fn band_rays(rays: u32) -> u32 {
+    let band = rays / BAND_DIVISOR;
+    if band > MIN_BAND_RAYS {
+        band
+    } else {
+        MIN_BAND_RAYS
+    }
+}
+
+/// A receiver's cosine-weighted rays above its geometric plane, summed for
+/// the layer: how many and how many visible, and over those in the cap
+/// ([`CAP_COS`]) Y_i(w) / cos theta, of the visible and of the occluded.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CapSums {
+    pub above: u32,
+    pub visible: u32,
+    pub open: [f32; VIS_COUNT],
+    pub occluded: [f32; VIS_COUNT],
+}
+
+impl CapSums {
+    /// Adds cosine-weighted ray `d` (above the geometric plane) of a
+    /// receiver with shading normal `n`.
+    #[inline]
+    pub fn add(&mut self, n: Vec3, d: Vec3, occluded: bool) {
+        self.above += 1;
+        if !occluded {
+            self.visible += 1;
+        }
+        let c = d.dot(n);
+        if c >= CAP_COS {
+            let (y, w) = (sh::basis16(d), 1.0 / c);
+            let sum = if occluded {
+                &mut self.occluded
+            } else {
+                &mut self.open
+            };
+            for (s, y) in sum.iter_mut().zip(y) {
+                *s += w * y;
+            }
+        }
+    }
+}
+
+/// Receiver `r`'s occluded share above its geometric plane (less), as
+/// [`share`], from two estimates: the cap's from its `cosine` cosine-weighted
+/// rays' `cap` sums, the band's from its `band` uniform band rays (of
+/// which `directions` and `occluded_rays` are those above the plane);
+/// with the open projection above the plane as the control variate,
+/// weighted by the visible fraction of all those rays.
+pub fn share_cap_band(
+    receivers: &Receivers,
+    r: usize,
+    cap: &CapSums,
+    cosine: u32,
+    band: u32,
+    directions: &[Vec3],
+    occluded_rays: &[bool],
+) -> [f32; VIS_COUNT] {
+    use std::f32::consts::PI;
+    let (n, geo) = (receivers.normal[r], receivers.geo_normal[r]);
+    let cap_per = PI / cosine.max(1) as f32;
+    let band_per = 2.0 * PI * CAP_COS / band.max(1) as f32;
+    let mut all: [f32; VIS_COUNT] =
+        std::array::from_fn(|i| (cap.open[i] + cap.occluded[i]) * cap_per);
+    let mut occluded: [f32; VIS_COUNT] = std::array::from_fn(|i| cap.occluded[i] * cap_per);
+    let mut visible = cap.visible;
+    for (&dir, &hit) in directions.iter().zip(occluded_rays) {
+        let y = sh::basis16(dir);
+        for (a, y) in all.iter_mut().zip(y) {
+            *a += band_per * y;
+        }
+        if hit {
+            for (o, y) in occluded.iter_mut().zip(y) {
+                *o += band_per * y;
+            }
+        } else {
+            visible += 1;
+        }
+    }
+    let above = cap.above + directions.len() as u32;
+    let seen = if above > 0 {
+        visible as f32 / above as f32
+    } else {
+        1.0
+    };
+    let open = sh::open_visibility(n);
+    let below = sh::below_plane_visibility(n, geo);
+    let open_above: [f32; VIS_COUNT] = std::array::from_fn(|i| open[i] - below[i]);
+    sh::occluded_share(&open_above, &occluded, &all, 1.0, seen)
+}
+
+/// Every receiver's [`share_cap_band`]: receiver r with its cap sums
+/// `cap[r]` over `cosine(r)` cosine-weighted rays, and the band rays
+/// `band(r)` = (first point, count) of the layer's sequence.
+pub fn shares_cap_band(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    cap: &[CapSums],
+    cosine: impl Fn(usize) -> u32 + Sync,
+    band: impl Fn(usize) -> (u32, u32) + Sync,
+    p: &BakeParams,
+) -> Vec<[f32; VIS_COUNT]> {
+    let mut out = vec![[0.0f32; VIS_COUNT]; receivers.len()];
+    for_each_receiver(
+        tracer,
+        &mut out,
+        CHUNK,
+        |r, _, batch| {
+            let (first, rays) = band(r);
+            emit_rays(receivers, r, first, rays, CAP_COS, p, batch)
+        },
+        |r, out, directions, occluded| {
+            let count = band(r).1;
+            *out = share_cap_band(
+                receivers,
+                r,
+                &cap[r],
+                cosine(r),
+                count,
+                directions,
+                occluded,
+            )
+        },
+        &|_| {},
+    );
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sample::{Frame, cosine_hemisphere};
+    use glam::Vec3A;
+
+    /// One receiver at the origin, geometric normal +z, shading normal
+    /// tilted `deg` degrees towards +x.
+    fn receiver(deg: f32) -> Receivers {
+        let a = deg.to_radians();
+        Receivers {
+            width: 1,
+            height: 1,
+            texel: vec![0],
+            position: vec![Vec3::ZERO],
+            normal: vec![Vec3::new(a.sin(), 0.0, a.cos())],
+            geo_normal: vec![Vec3::Z],
+            footprint: vec![1e-3],
+            center_inside: vec![true],
+            ..Default::default()
+        }
+    }
+
+    /// The receiver's `k` cosine-weighted rays' cap sums, a ray occluded
+    /// where `occluded(w)`.
+    fn cap_of(r: &Receivers, k: u32, occluded: impl Fn(Vec3) -> bool) -> CapSums {
+        let rays = ReceiverRays::new(r, 0, 7);
+        let mut cap = CapSums::default();
+        for i in 0..k {
+            let d = rays
+                .frame
+                .to_world(cosine_hemisphere(rays.point(i)))
+                .normalize();
+            if d.dot(r.geo_normal[0]) > 0.0 {
+                cap.add(r.normal[0], d, occluded(d));
+            }
+        }
+        cap
+    }
+
+    #[test]
+    fn closed_and_open_receivers_are_exact_at_any_count() {
+        // All occluded: the share is the whole open projection above the
+        // plane, less; none: nothing. Both whatever the rays, tilted to
+        // grazing (the lune reaching into the cap).
+        for deg in [0.0, 40.0, 85.0] {
+            let r = receiver(deg);
+            let (n, geo) = (r.normal[0], r.geo_normal[0]);
+            let open = sh::open_visibility(n);
+            let below = sh::below_plane_visibility(n, geo);
+            let band: Vec<Vec3> = (0..5)
+                .map(|i| {
+                    let u = Vec2::new(0.05 + 0.04 * i as f32, 0.13 * i as f32);
+                    Frame::from_normal(n).to_world(uniform_hemisphere(u))
+                })
+                .filter(|d| d.dot(geo) > 0.0)
+                .collect();
+            let closed = share_cap_band(
+                &r,
+                0,
+                &cap_of(&r, 16, |_| true),
+                16,
+                5,
+                &band,
+                &vec![true; band.len()],
+            );
+            let clear = share_cap_band(
+                &r,
+                0,
+                &cap_of(&r, 16, |_| false),
+                16,
+                5,
+                &band,
+                &vec![false; band.len()],
+            );
+            for i in 0..VIS_COUNT {
+                assert!((closed[i] + open[i] - below[i]).abs() < 1e-4, "{deg} v{i}");
+                assert_eq!(clear[i], 0.0, "{deg} v{i}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_receiver_beside_a_wall_matches_quadrature_from_the_cap_and_the_band() {
+        // A wall x = -0.05 occludes the directions with w.x < 0; the
+        // shading normal tilted 40 degrees so the lune below the plane
+        // and the cap both matter. Reference: the occluded share above
+        // the plane (less) by midpoint quadrature over the sphere.
+        let r = receiver(40.0);
+        let (n, geo) = (r.normal[0], r.geo_normal[0]);
+        let wall = [[
+            Vec3A::new(-0.05, -1e3, -1e3),
+            Vec3A::new(-0.05, 1e3, -1e3),
+            Vec3A::new(-0.05, 0.0, 1e3),
+        ]];
+        let tracer = Tracer::new(&wall);
+        let p = BakeParams {
+            max_distance: 1e4,
+            seed: 7,
+        };
+        let (k, band) = (4096, 512);
+        let cap = [cap_of(&r, k, |d| d.x < 0.0)];
+        let got = shares_cap_band(&r, &tracer, &cap, |_| k, |_| (0, band), &p)[0];
+        let mut want = [0.0f64; VIS_COUNT];
+        let (nz, nphi) = (800, 1600);
+        let dw = 2.0 / nz as f64 * 2.0 * std::f64::consts::PI / nphi as f64;
+        for a in 0..nz {
+            let z = -1.0 + (a as f64 + 0.5) * 2.0 / nz as f64;
+            let s = (1.0 - z * z).sqrt();
+            for b in 0..nphi {
+                let phi = (b as f64 + 0.5) * 2.0 * std::f64::consts::PI / nphi as f64;
+                let w = Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, z as f32);
+                if w.dot(n) > 0.0 && w.dot(geo) > 0.0 && w.x < 0.0 {
+                    for (o, y) in want.iter_mut().zip(sh::basis16(w)) {
+                        *o -= y as f64 * dw;
+                    }
+                }
+            }
+        }
+        assert!(want[0] < -0.3, "{}", want[0]);
+        for i in 0..VIS_COUNT {
+            assert!(
+                (got[i] as f64 - want[i]).abs() < 0.01,
+                "v{i}: {} against {}",
+                got[i],
+                want[i]
+            );
+        }
     }
 }

@@ -11,6 +11,7 @@
 
 use super::sums::{CHUNK, RaySums};
 use crate::atlas::Receivers;
+use crate::bake::visibility::CapSums;
 use crate::bake::{BakeParams, ReceiverRays};
 use crate::sh;
 use crate::trace::{Tracer, for_each_receiver};
@@ -33,22 +34,29 @@ impl Start<'_> {
 }
 
 /// Traces the rays from `from` to `rays[r]` of every receiver r into
-/// `sums`; `filtered(r)`: its sums leave out the rays below the plane.
-/// `progress` is told the receivers done.
+/// `sums` (and, where `cap` holds the receiver, the visibility layer's
+/// cap sums; empty without the layer); `filtered(r)`: its sums leave out
+/// the rays below the plane. `progress` is told the receivers done.
 #[allow(clippy::too_many_arguments)]
 pub fn adaptive_pass(
     receivers: &Receivers,
     tracer: &Tracer,
     sums: &mut [RaySums],
+    cap: &mut [CapSums],
     from: Start,
     rays: &[u32],
     filtered: impl Fn(usize) -> bool + Sync,
     p: &BakeParams,
     progress: &(dyn Fn(u64) + Sync),
 ) {
+    let caps = cap
+        .iter_mut()
+        .map(Some)
+        .chain(std::iter::repeat_with(|| None));
+    let mut states: Vec<(&mut RaySums, Option<&mut CapSums>)> = sums.iter_mut().zip(caps).collect();
     for_each_receiver(
         tracer,
-        sums,
+        &mut states,
         CHUNK,
         |r, _, batch| {
             let ray = ReceiverRays::new(receivers, r, p.seed);
@@ -65,7 +73,7 @@ pub fn adaptive_pass(
                 }
             }
         },
-        |r, s, directions, occluded| {
+        |r, (s, cap), directions, occluded| {
             let geo_normal = receivers.geo_normal[r];
             let above_only = filtered(r);
             // (`below` counts the pre-pass's rays below so far: none,
@@ -89,6 +97,8 @@ pub fn adaptive_pass(
             for (&d, &hit) in directions.iter().zip(occluded) {
                 if !above_only && d.dot(geo_normal) <= 0.0 {
                     s.below += 1;
+                } else if let Some(c) = cap {
+                    c.add(receivers.normal[r], d, hit);
                 }
                 sh::accumulate(&mut s.all, 1.0, d);
                 if hit {

@@ -27,8 +27,10 @@
 //!    through the leak rule and within z_min; then the exact parts added
 //!    per receiver (`sums::finish`: the open hemisphere's projection, the
 //!    share below the geometric plane).
-//! 6. With the visibility layer (`super::visibility`): half as many
-//!    uniform rays as each receiver's count ([`visibility_rays`]), their
+//! 6. With the visibility layer (`super::visibility`): the cap of each
+//!    receiver's hemisphere from its own cosine-weighted rays (summed in
+//!    the pre-pass and the adaptive pass), the band at the horizon from
+//!    an eighth as many uniform band rays ([`vis::band_rays`]); their
 //!    occluded share filtered with the same weights
 //!    (`FilterSupport::filter_values`), the exact parts added per receiver.
 //!
@@ -146,8 +148,9 @@ impl AdaptiveStats {
 }
 
 /// The adaptive bake (see the module doc). `visibility`: also bake the
-/// visibility layer ([`visibility_rays`] uniform rays per receiver,
-/// their occluded share filtered with the same weights as the SH). `fill_inside`: find the
+/// visibility layer (the cap from the receiver's own rays, the band from
+/// [`vis::band_rays`] uniform rays; their occluded share filtered with the
+/// same weights as the SH). `fill_inside`: find the
 /// receivers inside geometry ([`super::validity`], from the pre-pass's
 /// rays; they get the pre-pass only and neither lend nor receive in the
 /// filter), returned in [`AdaptiveStats::inside`]. Options validated.
@@ -175,7 +178,7 @@ pub fn bake(
     let n = receivers.len();
     let depths =
         (page.depths).unwrap_or_else(|| Depths::of(&receivers.footprint, o, p.max_distance));
-    let pre = prepass::pre_pass(receivers, tracer, fill_inside, o, depths, p);
+    let pre = prepass::pre_pass(receivers, tracer, fill_inside, visibility, o, depths, p);
     timer.lap("pre-pass");
 
     // The bounds' working arrays end with their stage (the memory
@@ -189,7 +192,7 @@ pub fn bake(
         .map(|t| t.max(o.pre_rays))
         .collect();
     let (z_min, sigma_texels) = (b.z_min, b.sigma_texels);
-    let (mut sums, inside) = (pre.sums, pre.inside);
+    let (mut sums, inside, mut cap) = (pre.sums, pre.inside, pre.cap);
     timer.lap("bounds");
 
     // Filtered receivers' sums leave out the rays below the geometric
@@ -215,7 +218,7 @@ pub fn bake(
     let rays = match fit_sets {
         None => {
             adaptive_pass::adaptive_pass(
-                receivers, tracer, &mut sums, start, &rays, filtered, p, progress,
+                receivers, tracer, &mut sums, &mut cap, start, &rays, filtered, p, progress,
             );
             rays
         }
@@ -225,7 +228,7 @@ pub fn bake(
             let first: Vec<u32> = rays.iter().map(|&n| n.min(fit_set_rays(o))).collect();
             let quiet = |_| {};
             adaptive_pass::adaptive_pass(
-                receivers, tracer, &mut sums, start, &first, filtered, p, &quiet,
+                receivers, tracer, &mut sums, &mut cap, start, &first, filtered, p, &quiet,
             );
             // The AO alone, filtered with the same weights.
             let ao: Vec<[f32; 1]> = (0..n)
@@ -242,7 +245,7 @@ pub fn bake(
                 .collect();
             let start = adaptive_pass::Start::Earlier(&first);
             adaptive_pass::adaptive_pass(
-                receivers, tracer, &mut sums, start, &rays, filtered, p, progress,
+                receivers, tracer, &mut sums, &mut cap, start, &rays, filtered, p, progress,
             );
             rays
         }
@@ -259,8 +262,9 @@ pub fn bake(
     timer.lap("filter");
 
     let layer = visibility.then(|| {
-        let counts = |r: usize| visibility_rays(rays[r], o.pre_rays);
-        let shares = vis::shares(receivers, tracer, counts, p);
+        let counts = |r: usize| vis::band_rays(rays[r]);
+        let cosine = |r: usize| rays[r];
+        let shares = vis::shares_cap_band(receivers, tracer, &cap, cosine, |r| (0, counts(r)), p);
         timer.lap("visibility pass");
         let v = vis::finish(receivers, support.filter_values(shares));
         timer.lap("visibility filter");
@@ -317,19 +321,3 @@ pub fn fit_set_rays(o: &AdaptiveOptions) -> u32 {
 
 /// [`fit_set_rays`] before the pre-pass's floor.
 pub const FIT_SET_RAYS: u32 = 32;
-
-/// Uniform visibility rays for a receiver the allocation gave `rays`
-/// (cosine-weighted) rays: half as many, never fewer than the pre-pass's
-/// count. The allocation already sends more rays where the visibility
-/// varies more, and a filtered receiver's share is averaged like its SH.
-/// Half costs little of the layer's accuracy for much of its time; a
-/// quarter costs more (`probes/visibility_error`;
-/// `docs/measurements/constants.md`, visibility_rays).
-#[inline]
-pub fn visibility_rays(rays: u32, pre_rays: u32) -> u32 {
-    (rays / VISIBILITY_RAY_DIVISOR).max(pre_rays)
-}
-
-/// How many times fewer visibility rays a receiver gets than its
-/// cosine-weighted ones.
-pub(crate) const VISIBILITY_RAY_DIVISOR: u32 = 2;

@@ -31,6 +31,7 @@ use super::sums::{CHUNK, RaySums};
 use super::width::Depths;
 use crate::atlas::Receivers;
 use crate::bake::validity::{self, BackFaces};
+use crate::bake::visibility as vis;
 use crate::bake::{BakeParams, ReceiverRays};
 use crate::sh;
 use crate::trace::{Closest, Hit, RayBatch, Tracer, for_each_receiver_query};
@@ -47,6 +48,9 @@ pub struct PrePass {
     pub crossings: Vec<u16>,
     /// Inside geometry (all false without `fill_inside`).
     pub inside: Vec<bool>,
+    /// With the visibility layer: the layer's sums of the rays in the cap
+    /// ([`vis::CapSums`]); empty without it.
+    pub cap: Vec<vis::CapSums>,
 }
 
 /// A receiver's running state through the pre-pass's rounds.
@@ -57,6 +61,7 @@ struct Running<'a> {
     z: f32,
     faces: BackFaces,
     occluded: &'a mut [u64],
+    cap: Option<&'a mut vis::CapSums>,
 }
 
 /// Where the rounds of rays end: a receiver's queries for a round are
@@ -72,11 +77,13 @@ fn round_ends(pre_rays: u32) -> Vec<u32> {
     ends
 }
 
-/// Traces the pre-pass (see the module doc), in rounds of batches.
+/// Traces the pre-pass (see the module doc), in rounds of batches;
+/// `layer`: also sums its rays for the visibility layer's cap.
 pub(crate) fn pre_pass(
     receivers: &Receivers,
     tracer: &Tracer,
     fill_inside: bool,
+    layer: bool,
     o: &AdaptiveOptions,
     depths: Depths,
     p: &BakeParams,
@@ -88,6 +95,8 @@ pub(crate) fn pre_pass(
     let test_faces = fill_inside && tracer.has_single_sided();
     let words = (o.pre_rays as usize).div_ceil(64).clamp(1, STRATA_WORDS);
     let mut bits = vec![0u64; n * words];
+    let mut cap = vec![vis::CapSums::default(); if layer { n } else { 0 }];
+    let mut caps = cap.iter_mut();
     let mut running: Vec<Running> = bits
         .chunks_mut(words)
         .map(|occluded| Running {
@@ -95,6 +104,7 @@ pub(crate) fn pre_pass(
             z: f32::INFINITY,
             faces: BackFaces::default(),
             occluded,
+            cap: caps.next(),
         })
         .collect();
     let mut from = 0;
@@ -145,6 +155,9 @@ pub(crate) fn pre_pass(
                 } else {
                     Some(s.z.min(exact))
                 };
+                if let Some(c) = &mut s.cap {
+                    c.add(receivers.normal[r], d, hit.is_some());
+                }
                 match hit {
                     Some(h) => {
                         let t = depth.map_or(s.z, |depth| h.distance_within(t_max, depth));
@@ -184,10 +197,14 @@ pub(crate) fn pre_pass(
         }
         false => vec![false; n],
     };
+    let sums = running.iter().map(|s| s.sums).collect();
+    let own_z = running.iter().map(|s| s.z).collect();
+    drop(running);
     PrePass {
-        sums: running.iter().map(|s| s.sums).collect(),
-        own_z: running.iter().map(|s| s.z).collect(),
+        sums,
+        own_z,
         crossings,
         inside,
+        cap,
     }
 }

@@ -79,13 +79,10 @@ use serde::{Deserialize, Serialize};
 /// (`docs/measurements/border-fit-cost.md`).
 pub const FIT_RAYS: u32 = 64;
 
-/// Uniform rays of each fitted point's visibility layer: as the adaptive
-/// bake gives its receivers, half the cosine-weighted count
-/// ([`crate::bake::adaptive::visibility_rays`]). Measured on the flight
-/// helmet at 1024 against 64: border points stage 0.84x, relight error
-/// interior / border 1.018x / 1.021x, engine-view AO and SH unchanged
-/// (`docs/measurements/border-fit-cost.md`).
-pub const FIT_VISIBILITY_RAYS: u32 = FIT_RAYS / crate::bake::adaptive::VISIBILITY_RAY_DIVISOR;
+/// Uniform band rays of each fitted point's visibility layer, as the
+/// adaptive bake gives a receiver of [`FIT_RAYS`] rays
+/// ([`visibility::band_rays`]); the cap takes the point's own rays.
+pub const FIT_BAND_RAYS: u32 = visibility::band_rays(FIT_RAYS);
 
 /// A fitted point's row weight relative to a seam row's (seams-only):
 /// the fit has ~4 rows per texel of the border band against each texel's
@@ -303,7 +300,7 @@ pub(crate) type FitCache = std::sync::Mutex<Option<std::sync::Arc<FitTargets>>>;
 pub const SEAM_SCALE: f64 = 2.0;
 
 /// The anchors of a page's border band: [`points`] on `tris` traced with
-/// [`FIT_RAYS`] rays (AO, SH), and with `layer` [`FIT_VISIBILITY_RAYS`]
+/// [`FIT_RAYS`] rays (AO, SH), and with `layer` [`FIT_BAND_RAYS`]
 /// for the visibility layer's coefficients after them, inside-geometry
 /// points left out. `seed`: the page's own (its points and rays depend on
 /// nothing else). `known`: per texel, whether its value is known (a bake
@@ -396,12 +393,7 @@ pub fn anchors(
         })
         .collect();
     let n = outside.len() as u64;
-    let rays = n * FIT_RAYS as u64
-        + if layer {
-            n * FIT_VISIBILITY_RAYS as u64
-        } else {
-            0
-        };
+    let rays = n * FIT_RAYS as u64 + if layer { n * FIT_BAND_RAYS as u64 } else { 0 };
     if all.is_empty() {
         return (anchors, rays);
     }
@@ -414,8 +406,9 @@ pub fn anchors(
 
 /// AO and SH at every receiver of `r` (the fit's points, each keyed by its
 /// block) from its [`FIT_RAYS`]-ray run `slots[k]` of its sequence, and
-/// with `layer` the visibility layer's coefficients from its
-/// [`FIT_VISIBILITY_RAYS`]-ray run `slots[k]` of the layer's sequence.
+/// with `layer` the visibility layer's coefficients from the same rays in
+/// the cap and its [`FIT_BAND_RAYS`]-ray run `slots[k]` of the layer's
+/// band sequence ([`visibility::shares_cap_band`]).
 #[allow(clippy::type_complexity)]
 fn targets(
     r: &Receivers,
@@ -425,167 +418,39 @@ fn targets(
     layer: bool,
 ) -> (Vec<(f32, [f32; SH_COUNT])>, Option<Vec<[f32; VIS_COUNT]>>) {
     let mut traced = vec![(0.0f32, [0.0f32; SH_COUNT]); r.len()];
+    let mut cap = vec![visibility::CapSums::default(); if layer { r.len() } else { 0 }];
+    let caps = cap
+        .iter_mut()
+        .map(Some)
+        .chain(std::iter::repeat_with(|| None));
+    let mut states: Vec<_> = traced.iter_mut().zip(caps).collect();
     for_each_receiver(
         tracer,
-        &mut traced,
+        &mut states,
         64,
         |k, _, batch| mc::emit_receiver(r, k, slots[k] * FIT_RAYS, FIT_RAYS, params, batch),
-        |k, out, directions, occluded| *out = mc::integrate_receiver(r, k, directions, occluded),
+        |k, (out, cap), directions, occluded| {
+            **out = mc::integrate_receiver(r, k, directions, occluded);
+            if let Some(c) = cap {
+                let (n, geo) = (r.normal[k], r.geo_normal[k]);
+                for (&d, &hit) in directions.iter().zip(occluded) {
+                    if d.dot(geo) > 0.0 {
+                        c.add(n, d, hit);
+                    }
+                }
+            }
+        },
         &|_| {},
     );
+    drop(states);
     let v = layer.then(|| {
-        let n = FIT_VISIBILITY_RAYS;
-        let span = |k: usize| (slots[k] * n, n);
-        visibility::finish(r, visibility::shares_from(r, tracer, span, params))
+        let n = FIT_BAND_RAYS;
+        let band = |k: usize| (slots[k] * n, n);
+        let shares = visibility::shares_cap_band(r, tracer, &cap, |_| FIT_RAYS, band, params);
+        visibility::finish(r, shares)
     });
     (traced, v)
 }
 
 #[cfg(test)]
-mod tests {
-    use super::points::tests::square;
-    use super::*;
-    use glam::{Vec2, Vec3, Vec3A};
-
-    /// A w x w texel square at UV `at`, lying at world `at + offset` in
-    /// the z = 0 plane.
-    fn square_at(at: Vec2, w: f32, offset: Vec3) -> Vec<SurfaceTri> {
-        square(w)
-            .into_iter()
-            .map(|mut t| {
-                for k in 0..3 {
-                    t.uv[k] += at - Vec2::splat(2.0);
-                    t.pos[k] = Vec3::new(t.uv[k].x, t.uv[k].y, 0.0) + offset;
-                }
-                t
-            })
-            .collect()
-    }
-
-    #[test]
-    fn a_points_target_does_not_depend_on_the_points_before_it() {
-        // Square A under a slanted roof (its points' targets are noisy
-        // fractions), and square B far away in the world, on another part
-        // of the page and before A in the triangle list: with B or without,
-        // A's points are the same and must trace the same rays, as they
-        // lie on the page, not as they are counted.
-        let a = square_at(Vec2::new(1.0, 1.0), 4.0, Vec3::ZERO);
-        let b = square_at(Vec2::new(6.0, 6.0), 3.0, Vec3::new(100.0, 0.0, 0.0));
-        let roof = [
-            Vec3A::new(-5.0, -5.0, 0.5),
-            Vec3A::new(10.0, -5.0, 0.5),
-            Vec3A::new(-5.0, 10.0, 2.0),
-        ];
-        let tracer = Tracer::with_sides(&[roof], &[false]);
-        let all = vec![true; 100];
-        let fit = |tris: &[SurfaceTri]| {
-            let (anchors, _) = anchors(tris, 10, 10, &all, &all, None, &tracer, 3.0, 5, false);
-            anchors
-        };
-        let alone = fit(&a);
-        let both = fit(&[b, a.clone()].concat());
-        assert!(alone.len() > 20, "{}", alone.len());
-        // Not all open or closed: the rays decide the targets.
-        assert!(
-            alone
-                .iter()
-                .any(|x| x.target[0] > 0.05 && x.target[0] < 0.95)
-        );
-        for x in &alone {
-            let y = both.iter().find(|y| y.uv == x.uv).expect("the same point");
-            assert_eq!(x.target, y.target, "{:?}", x.uv);
-        }
-    }
-
-    #[test]
-    fn points_inside_geometry_trace_no_rays() {
-        // A 4 x 4 texel square (world x in [1, 5]) whose half x < 3 lies
-        // inside a closed single-sided box: the points there leave the
-        // fit, and only the points outside trace their rays.
-        let sq = square_at(Vec2::new(1.0, 1.0), 4.0, Vec3::ZERO);
-        let (lo, hi) = (Vec3A::new(-10.0, -10.0, -1.0), Vec3A::new(3.0, 10.0, 1.0));
-        let corner = |i: usize| {
-            Vec3A::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        };
-        let faces = [
-            [0, 2, 6, 4],
-            [1, 3, 7, 5],
-            [0, 1, 5, 4],
-            [2, 3, 7, 6],
-            [0, 1, 3, 2],
-            [4, 5, 7, 6],
-        ];
-        let centre = (lo + hi) * 0.5;
-        let mut box_tris = Vec::new();
-        for f in faces {
-            for [a, b, c] in [[f[0], f[1], f[2]], [f[0], f[2], f[3]]] {
-                let (a, mut b, mut c) = (corner(a), corner(b), corner(c));
-                // Wound to face out of the box.
-                if (b - a).cross(c - a).dot(a - centre) < 0.0 {
-                    std::mem::swap(&mut b, &mut c);
-                }
-                box_tris.push([a, b, c]);
-            }
-        }
-        let tracer = Tracer::with_sides(&box_tris, &vec![true; box_tris.len()]);
-        let all = vec![true; 100];
-        let every = points(&sq, 10, 10, &all, &all, 5).len();
-        let (anchors, rays) = anchors(&sq, 10, 10, &all, &all, None, &tracer, 3.0, 5, false);
-        assert!(every > 40, "{every}");
-        // About half the points lie inside (x < 3 of x in [1, 5]).
-        assert!(
-            anchors.len() > every / 3 && anchors.len() < 2 * every / 3,
-            "{} of {every}",
-            anchors.len()
-        );
-        assert!(
-            anchors.iter().all(|a| a.uv[0] * 10.0 > 2.9),
-            "a point inside kept"
-        );
-        assert_eq!(rays, anchors.len() as u64 * FIT_RAYS as u64);
-    }
-
-    #[test]
-    fn a_blocks_points_together_trace_one_stratified_set() {
-        // Four points of one block at one surface point under a slanted
-        // roof: their runs of the block's sequence together are its first
-        // 4 x FIT_RAYS points, so their mean AO is a 4 x FIT_RAYS-ray
-        // Monte Carlo estimate of that point (mc::bake, keyed alike).
-        let tri = square(4.0)[0].clone();
-        let roof = [
-            Vec3A::new(-5.0, -5.0, 0.5),
-            Vec3A::new(10.0, -5.0, 0.5),
-            Vec3A::new(-5.0, 10.0, 2.0),
-        ];
-        let tracer = Tracer::with_sides(&[roof], &[false]);
-        let params = BakeParams {
-            max_distance: 3.0,
-            seed: 5,
-        };
-        let at = |n: usize| {
-            let mut r = Receivers {
-                width: 10,
-                height: 10,
-                ..Default::default()
-            };
-            for _ in 0..n {
-                r.push_surface_point(77, &tri, [0.9, 0.05, 0.05], true);
-            }
-            r
-        };
-        let (runs, _) = targets(&at(4), &[0, 1, 2, 3], &tracer, &params, false);
-        let mean = runs.iter().map(|t| t.0).sum::<f32>() / 4.0;
-        let whole = mc::bake(&at(1), &tracer, 4 * FIT_RAYS, &params, &|_| {});
-        let first = mc::bake(&at(1), &tracer, FIT_RAYS, &params, &|_| {});
-        assert!((mean - whole.ao[0]).abs() < 1e-6, "{mean} {}", whole.ao[0]);
-        // The roof occludes part of the hemisphere, and one run alone is
-        // not the whole set's estimate (the runs are not the same rays).
-        assert!(mean > 0.1 && mean < 0.9, "{mean}");
-        assert!((first.ao[0] - whole.ao[0]).abs() > 1e-3, "{}", first.ao[0]);
-        assert_eq!(runs[0].0, first.ao[0]);
-    }
-}
+mod tests;
