@@ -94,10 +94,12 @@ pub fn adaptive_pass(
             if above_only {
                 s.below += rays[r].saturating_sub(from.of(r)) - cast;
             }
+            // The layer's cap, summed apart and added once.
+            let mut layer = cap.as_ref().map(|_| CapSums::default());
             for (&d, &hit) in directions.iter().zip(occluded) {
                 if !above_only && d.dot(geo_normal) <= 0.0 {
                     s.below += 1;
-                } else if let Some(c) = cap {
+                } else if let Some(c) = &mut layer {
                     c.add(receivers.normal[r], d, hit);
                 }
                 sh::accumulate(&mut s.all, 1.0, d);
@@ -106,6 +108,9 @@ pub fn adaptive_pass(
                 } else {
                     s.visible += 1;
                 }
+            }
+            if let (Some(c), Some(layer)) = (cap, layer) {
+                c.merge(&layer);
             }
         },
         progress,
