@@ -30,7 +30,7 @@
 //! 6. With the visibility layer (`super::visibility`): the cap of each
 //!    receiver's hemisphere from its own cosine-weighted rays (summed in
 //!    the pre-pass and the adaptive pass), the band at the horizon from
-//!    an eighth as many uniform band rays ([`vis::band_rays`]); their
+//!    an eighth as many uniform band rays (`visibility::band_rays`); their
 //!    occluded share filtered with the same weights
 //!    (`FilterSupport::filter_values`), the exact parts added per receiver.
 //!
@@ -149,7 +149,7 @@ impl AdaptiveStats {
 
 /// The adaptive bake (see the module doc). `visibility`: also bake the
 /// visibility layer (the cap from the receiver's own rays, the band from
-/// [`vis::band_rays`] uniform rays; their occluded share filtered with the
+/// `visibility::band_rays` uniform rays; their occluded share filtered with the
 /// same weights as the SH). `fill_inside`: find the
 /// receivers inside geometry ([`super::validity`], from the pre-pass's
 /// rays; they get the pre-pass only and neither lend nor receive in the

@@ -81,7 +81,7 @@ pub const FIT_RAYS: u32 = 64;
 
 /// Uniform band rays of each fitted point's visibility layer, as the
 /// adaptive bake gives a receiver of [`FIT_RAYS`] rays
-/// ([`visibility::band_rays`]); the cap takes the point's own rays.
+/// (`visibility::band_rays`); the cap takes the point's own rays.
 pub const FIT_BAND_RAYS: u32 = visibility::band_rays(FIT_RAYS);
 
 /// A fitted point's row weight relative to a seam row's (seams-only):
