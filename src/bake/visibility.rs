@@ -255,18 +255,6 @@ impl CapSums {
             }
         }
     }
-
-    /// Adds the sums of `other` (later rays of the same receiver, summed
-    /// apart so that a ray loop keeps them in registers).
-    #[inline]
-    pub fn merge(&mut self, other: &CapSums) {
-        self.above += other.above;
-        self.visible += other.visible;
-        for i in 0..VIS_COUNT {
-            self.open[i] += other.open[i];
-            self.occluded[i] += other.occluded[i];
-        }
-    }
 }
 
 /// Receiver `r`'s occluded share above its geometric plane (less), as

@@ -94,8 +94,10 @@ pub fn adaptive_pass(
             if above_only {
                 s.below += rays[r].saturating_sub(from.of(r)) - cast;
             }
-            // The layer's cap, summed apart and added once.
-            let mut layer = cap.as_ref().map(|_| CapSums::default());
+            // The layer's cap, summed in a copy (kept in registers) and
+            // written back: the same sums in the same order as in place,
+            // so rounds add up to one round's bits.
+            let mut layer: Option<CapSums> = cap.as_deref().copied();
             for (&d, &hit) in directions.iter().zip(occluded) {
                 if !above_only && d.dot(geo_normal) <= 0.0 {
                     s.below += 1;
@@ -110,7 +112,7 @@ pub fn adaptive_pass(
                 }
             }
             if let (Some(c), Some(layer)) = (cap, layer) {
-                c.merge(&layer);
+                **c = layer;
             }
         },
         progress,
