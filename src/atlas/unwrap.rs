@@ -262,17 +262,24 @@ pub(crate) fn unwrap_with_progress(
         min_chart_width: options.min_chart_width,
         ..Default::default()
     };
-    let generate = |opts: &uvunwrap::Options| {
-        uvunwrap::generate_with_progress(&inputs, opts, |p| {
-            let stage = match p.stage {
-                uvunwrap::Stage::Segmenting => "segmenting",
-                uvunwrap::Stage::Parameterizing => "flattening",
-                uvunwrap::Stage::Packing => "packing",
-                _ => "unwrapping",
-            };
-            progress(stage, p.done, p.total);
-            true
-        })
+    let report = |p: uvunwrap::Progress| {
+        let stage = match p.stage {
+            uvunwrap::Stage::Segmenting => "segmenting",
+            uvunwrap::Stage::Parameterizing => "flattening",
+            uvunwrap::Stage::Packing => "packing",
+            _ => "unwrapping",
+        };
+        progress(stage, p.done, p.total);
+        true
+    };
+    // Segmented and flattened once: the relaxing ladder's rungs and the
+    // fallbacks differ only in padding, chart width, density and packing
+    // (the same atlas as a fresh unwrap under each: vendor/uvunwrap's
+    // PATCHES.md).
+    let prepared = uvunwrap::prepare_with_progress(&inputs, &opts, report);
+    let generate = |opts: &uvunwrap::Options| match &prepared {
+        Ok(p) => p.generate_with_progress(&inputs, opts, report),
+        Err(e) => Err(e.clone()),
     };
     let mut atlas = match (generate(&opts), options.size) {
         (Ok(a), _) => a,

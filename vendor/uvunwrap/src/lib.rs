@@ -422,3 +422,33 @@ pub fn generate_with_progress(
 ) -> Result<Atlas, Error> {
     pipeline::run(meshes, options, &Ctx::new(Some(&callback)))
 }
+
+pub use pipeline::Prepared;
+
+/// Validates, welds, segments and parameterizes `meshes` once, reporting
+/// progress like [`generate_with_progress`]: [`Prepared::generate_with_progress`]
+/// then packs them under any options with the same segmentation options
+/// (`max_chart_angle`, `max_area_distortion`, `max_chart_area`,
+/// `max_boundary_length`) without parameterizing again.
+pub fn prepare_with_progress(
+    meshes: &[MeshInput<'_>],
+    options: &Options,
+    callback: impl Fn(Progress) -> bool + Sync,
+) -> Result<Prepared, Error> {
+    pipeline::prepare(meshes, options, &Ctx::new(Some(&callback)))
+}
+
+impl Prepared {
+    /// The atlas [`generate_with_progress`] gives for the same `meshes` and
+    /// `options`, from the prepared charts: only the chart widths, packing
+    /// and output stages run. Options with another segmentation, or other
+    /// meshes, are unwrapped from scratch.
+    pub fn generate_with_progress(
+        &self,
+        meshes: &[MeshInput<'_>],
+        options: &Options,
+        callback: impl Fn(Progress) -> bool + Sync,
+    ) -> Result<Atlas, Error> {
+        pipeline::run_prepared(meshes, self, options, &Ctx::new(Some(&callback)))
+    }
+}

@@ -21,6 +21,7 @@ use std::collections::{HashMap, VecDeque};
 
 /// A parameterized chart. UVs are in world units (area-preserving on average),
 /// rotated to their minimum-area bounding rectangle with the minimum at `(0, 0)`.
+#[derive(Clone)]
 pub(crate) struct Chart {
     /// Face indices (into the mesh's faces).
     pub faces: Vec<u32>,

@@ -14,11 +14,76 @@ use std::collections::HashMap;
 
 /// Validates the input, then unwraps, packs and assembles the output.
 pub(crate) fn run(meshes: &[MeshInput<'_>], options: &Options, ctx: &Ctx) -> Result<Atlas, Error> {
+    let prepared = prepare(meshes, options, ctx)?;
+    finish(meshes, prepared.unwrapped, options, ctx)
+}
+
+/// Meshes welded, segmented and parameterized ([`prepare`]): what every
+/// packing of them under the same segmentation options starts from, so
+/// that atlases differing only in padding, chart width, density or
+/// packing ([`run_prepared`]) parameterize once.
+pub struct Prepared {
+    unwrapped: Vec<Unwrapped>,
+    /// The options `unwrap_meshes` reads, as bits.
+    segmentation: [u32; 4],
+    /// Per mesh, its vertex and index counts.
+    shapes: Vec<(usize, usize)>,
+}
+
+/// The options that segmentation and parameterization read.
+fn segmentation_key(o: &Options) -> [u32; 4] {
+    [
+        o.max_chart_angle.to_bits(),
+        o.max_area_distortion.to_bits(),
+        o.max_chart_area.to_bits(),
+        o.max_boundary_length.to_bits(),
+    ]
+}
+
+fn shapes(meshes: &[MeshInput<'_>]) -> Vec<(usize, usize)> {
+    meshes.iter().map(|m| (m.positions.len(), m.indices.len())).collect()
+}
+
+/// Validates and unwraps `meshes` up to packing.
+pub(crate) fn prepare(
+    meshes: &[MeshInput<'_>],
+    options: &Options,
+    ctx: &Ctx,
+) -> Result<Prepared, Error> {
     validate::options(options)?;
     for (mi, m) in meshes.iter().enumerate() {
         validate::mesh(mi, m)?;
     }
-    let mut unwrapped = unwrap_meshes(meshes, options, ctx)?;
+    Ok(Prepared {
+        unwrapped: unwrap_meshes(meshes, options, ctx)?,
+        segmentation: segmentation_key(options),
+        shapes: shapes(meshes),
+    })
+}
+
+/// [`run`] from `prepared` (the charts of `meshes`, cloned): the same
+/// atlas as `run(meshes, options)`. Options whose segmentation differs
+/// from the prepared one's, or other meshes, unwrap from scratch.
+pub(crate) fn run_prepared(
+    meshes: &[MeshInput<'_>],
+    prepared: &Prepared,
+    options: &Options,
+    ctx: &Ctx,
+) -> Result<Atlas, Error> {
+    if segmentation_key(options) != prepared.segmentation || shapes(meshes) != prepared.shapes {
+        return run(meshes, options, ctx);
+    }
+    validate::options(options)?;
+    finish(meshes, prepared.unwrapped.clone(), options, ctx)
+}
+
+/// Widens, packs and assembles the unwrapped meshes.
+fn finish(
+    meshes: &[MeshInput<'_>],
+    mut unwrapped: Vec<Unwrapped>,
+    options: &Options,
+    ctx: &Ctx,
+) -> Result<Atlas, Error> {
     if options.min_chart_width > 0.0 {
         widen_thin_charts(meshes, &mut unwrapped, options, ctx)?;
     }
@@ -68,6 +133,7 @@ pub(crate) fn run(meshes: &[MeshInput<'_>], options: &Options, ctx: &Ctx) -> Res
 }
 
 /// A mesh after segmentation and parameterization.
+#[derive(Clone)]
 struct Unwrapped {
     topo: Topology,
     charts: Vec<param::Chart>,
@@ -517,75 +583,5 @@ fn split_seams(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::stretch;
-
-    #[test]
-    fn stretch_brings_thin_axes_to_the_minimum_only() {
-        // 0.25 x 10 units at 4 texels per unit: 1 x 40 texels.
-        let k = stretch([0.25, 10.0], 4.0, 2.0);
-        assert_eq!(k, [2.0, 1.0]);
-        // Wide enough, or without extent (a degenerate chart): unchanged.
-        assert_eq!(stretch([1.0, 0.0], 4.0, 2.0), [1.0, 1.0]);
-        // Both axes thin: each to the minimum.
-        let k = stretch([0.1, 0.2], 4.0, 2.0);
-        assert!((0.1 * k[0] * 4.0 - 2.0f64).abs() < 1e-12 && (0.2 * k[1] * 4.0 - 2.0f64).abs() < 1e-12);
-    }
-
-    /// Boxes of many sizes (one mesh each): hundreds of charts.
-    fn boxes() -> Vec<(Vec<[f32; 3]>, Vec<u32>)> {
-        (0..60)
-            .map(|k| {
-                let s = [1.0 + (k % 7) as f32 * 0.6, 0.3 + (k % 5) as f32 * 0.9, 0.5 + (k % 3) as f32];
-                let mut p = Vec::new();
-                for i in 0..8 {
-                    p.push([
-                        s[0] * (i & 1) as f32 + k as f32 * 10.0,
-                        s[1] * ((i >> 1) & 1) as f32,
-                        s[2] * ((i >> 2) & 1) as f32,
-                    ]);
-                }
-                let quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
-                let t = quads
-                    .iter()
-                    .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
-                    .collect();
-                (p, t)
-            })
-            .collect()
-    }
-
-    #[test]
-    fn the_automatic_density_is_the_same_on_any_thread_count_and_fills_the_page() {
-        let data = boxes();
-        let meshes: Vec<crate::MeshInput> = data.iter().map(|(p, t)| crate::MeshInput::new(p, t)).collect();
-        let options = crate::Options {
-            density: crate::Density::Auto { page_size: 256 },
-            padding: 2,
-            min_chart_width: 2.0,
-            ..Default::default()
-        };
-        let run = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| crate::generate(&meshes, &options).unwrap())
-        };
-        let (one, four) = (run(1), run(4));
-        assert_eq!(one.texels_per_unit, four.texels_per_unit);
-        assert_eq!((one.width, one.height), (four.width, four.height));
-        let uv = |a: &crate::Atlas| -> Vec<[f32; 2]> { a.meshes.iter().flat_map(|m| m.vertices.iter().map(|v| v.uv)).collect() };
-        assert_eq!(uv(&one), uv(&four));
-        // One page, filled: at 1% more density the charts need a second
-        // page or a taller one (the search stops within 0.25%).
-        assert_eq!(one.page_count, 1);
-        assert!(one.width <= 256 && one.height <= 256);
-        let denser = crate::Options {
-            density: crate::Density::Fixed { texels_per_unit: one.texels_per_unit * 1.01, page_size: Some(256) },
-            ..options
-        };
-        let more = crate::generate(&meshes, &denser).unwrap();
-        assert!(more.page_count > 1 || more.height > one.height, "{} pages, {} rows", more.page_count, more.height);
-    }
-}
+#[path = "pipeline_tests.rs"]
+mod tests;

@@ -7,6 +7,7 @@ use std::collections::HashMap;
 /// Sentinel for "no neighbor" / "unassigned".
 pub(crate) const NONE: u32 = u32::MAX;
 
+#[derive(Clone)]
 pub(crate) struct Topology {
     /// Original vertex index -> welded vertex index.
     pub welded: Vec<u32>,
