@@ -200,8 +200,8 @@ pub fn bake(receivers: &Receivers, tracer: &Tracer, rays: u32, p: &BakeParams) -
 /// (infinite variance), so the band below the cap takes uniform rays of
 /// its own ([`band_rays`]). At 0.25 the band is a quarter of the
 /// hemisphere's solid angle and a cap ray's weight at most twice a
-/// uniform ray's (`docs/measurements/border-fit-cost.md`, the layer from
-/// the bake's rays).
+/// uniform ray's (`docs/visibility.md`, the cap from the bake's rays;
+/// `docs/measurements/constants.md`, CAP_COS).
 pub const CAP_COS: f32 = 0.25;
 
 /// How many times fewer band rays a receiver gets than its cosine-weighted
