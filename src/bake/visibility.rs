@@ -57,22 +57,10 @@ fn tilt(n: Vec3, geo: Vec3) -> f32 {
 }
 
 /// Receiver `r`'s `rays` stratified uniform rays around its shading
-/// normal, from point `first` of its sequence on, those at or below its
-/// geometric plane left out (they add nothing: [`share`] counts the solid
-/// angle above).
-fn emit_receiver(
-    receivers: &Receivers,
-    r: usize,
-    first: u32,
-    rays: u32,
-    p: &BakeParams,
-    batch: &mut RayBatch,
-) {
-    emit_rays(receivers, r, first, rays, 1.0, p, batch)
-}
-
-/// [`emit_receiver`]'s rays, uniform over the zone of the hemisphere
-/// where cos theta < `top` (1: all of it; [`CAP_COS`]: the band).
+/// normal over the zone where cos theta < `top` (1: the whole hemisphere;
+/// [`CAP_COS`]: the band), from point `first` of its sequence on, those at
+/// or below its geometric plane left out (they add nothing: [`share`]
+/// counts the solid angle above).
 fn emit_rays(
     receivers: &Receivers,
     r: usize,
@@ -97,7 +85,7 @@ fn emit_rays(
 }
 
 /// Receiver `r`'s occluded share above its geometric plane (less), from
-/// its rays above the plane ([`emit_receiver`]'s) and whether each is
+/// its rays above the plane ([`emit_rays`]'s) and whether each is
 /// occluded.
 pub fn share(
     receivers: &Receivers,
@@ -154,6 +142,27 @@ pub fn shares_from(
     span: impl Fn(usize) -> (u32, u32) + Sync,
     p: &BakeParams,
 ) -> Vec<[f32; VIS_COUNT]> {
+    traced_shares(
+        receivers,
+        tracer,
+        &span,
+        1.0,
+        p,
+        |r, directions, occluded| share(receivers, r, directions, occluded),
+    )
+}
+
+/// Per receiver r, `share(r, directions, occluded)` of its rays `span(r)`
+/// = (first point, count) of the layer's sequence, uniform where
+/// cos theta < `top` ([`emit_rays`]).
+fn traced_shares(
+    receivers: &Receivers,
+    tracer: &Tracer,
+    span: &(impl Fn(usize) -> (u32, u32) + Sync),
+    top: f32,
+    p: &BakeParams,
+    share: impl Fn(usize, &[Vec3], &[bool]) -> [f32; VIS_COUNT] + Sync,
+) -> Vec<[f32; VIS_COUNT]> {
     let mut out = vec![[0.0f32; VIS_COUNT]; receivers.len()];
     for_each_receiver(
         tracer,
@@ -161,9 +170,9 @@ pub fn shares_from(
         CHUNK,
         |r, _, batch| {
             let (first, rays) = span(r);
-            emit_receiver(receivers, r, first, rays, p, batch)
+            emit_rays(receivers, r, first, rays, top, p, batch)
         },
-        |r, out, directions, occluded| *out = share(receivers, r, directions, occluded),
+        |r, out, directions, occluded| *out = share(r, directions, occluded),
         &|_| {},
     );
     out
@@ -316,18 +325,15 @@ pub fn shares_cap_band(
     band: impl Fn(usize) -> (u32, u32) + Sync,
     p: &BakeParams,
 ) -> Vec<[f32; VIS_COUNT]> {
-    let mut out = vec![[0.0f32; VIS_COUNT]; receivers.len()];
-    for_each_receiver(
+    traced_shares(
+        receivers,
         tracer,
-        &mut out,
-        CHUNK,
-        |r, _, batch| {
-            let (first, rays) = band(r);
-            emit_rays(receivers, r, first, rays, CAP_COS, p, batch)
-        },
-        |r, out, directions, occluded| {
+        &band,
+        CAP_COS,
+        p,
+        |r, directions, occluded| {
             let count = band(r).1;
-            *out = share_cap_band(
+            share_cap_band(
                 receivers,
                 r,
                 &cap[r],
@@ -337,9 +343,7 @@ pub fn shares_cap_band(
                 occluded,
             )
         },
-        &|_| {},
-    );
-    out
+    )
 }
 
 #[cfg(test)]
