@@ -97,22 +97,9 @@ pub fn share(
     let (above, mut visible) = (directions.len() as u32, 0u32);
     let mut occluded = [0.0f32; VIS_COUNT];
     let mut all = [0.0f32; VIS_COUNT];
-    for (&dir, &hit) in directions.iter().zip(occluded_rays) {
-        let y = sh::basis16(dir);
-        for (a, y) in all.iter_mut().zip(y) {
-            *a += y;
-        }
-        if !hit {
-            visible += 1;
-        } else {
-            for (o, y) in occluded.iter_mut().zip(y) {
-                *o += y;
-            }
-        }
-    }
-    let open = sh::open_visibility(n);
-    let below = sh::below_plane_visibility(n, geo);
-    let open_above: [f32; VIS_COUNT] = std::array::from_fn(|i| open[i] - below[i]);
+    let sums = (&mut all, &mut occluded, &mut visible);
+    add_rays(sums, 1.0, directions, occluded_rays);
+    let open_above = open_above(n, geo);
     // Solid angle above the plane: the hemisphere's 2 pi less the lune's
     // 2 theta, shared by the rays that went there.
     let (per_ray, seen) = if above > 0 {
@@ -122,6 +109,40 @@ pub fn share(
         (0.0, 1.0)
     };
     sh::occluded_share(&open_above, &occluded, &all, per_ray, seen)
+}
+
+/// Adds `weight` Y_i(w) of every ray w of `directions` to `all`, and of
+/// the occluded ones (`occluded_rays`) to `occluded`; counts the visible.
+#[inline]
+fn add_rays(
+    (all, occluded, visible): (&mut [f32; VIS_COUNT], &mut [f32; VIS_COUNT], &mut u32),
+    weight: f32,
+    directions: &[Vec3],
+    occluded_rays: &[bool],
+) {
+    for (&dir, &hit) in directions.iter().zip(occluded_rays) {
+        let y = sh::basis16(dir);
+        for (a, y) in all.iter_mut().zip(y) {
+            *a += weight * y;
+        }
+        if hit {
+            for (o, y) in occluded.iter_mut().zip(y) {
+                *o += weight * y;
+            }
+        } else {
+            *visible += 1;
+        }
+    }
+}
+
+/// The open hemisphere's projection around shading normal `n`, less the
+/// lune below the geometric plane `geo`: what the layer's rays above the
+/// plane estimate.
+#[inline]
+fn open_above(n: Vec3, geo: Vec3) -> [f32; VIS_COUNT] {
+    let open = sh::open_visibility(n);
+    let below = sh::below_plane_visibility(n, geo);
+    std::array::from_fn(|i| open[i] - below[i])
 }
 
 /// Every receiver's [`share`], receiver r with `rays(r)` rays (0: open).
@@ -266,6 +287,20 @@ impl CapSums {
     }
 }
 
+/// Each receiver's state of `states` paired with its cap sums in `cap`
+/// (none past `cap`'s end: empty without the layer), for the passes that
+/// sum the cap beside their own sums.
+pub fn with_caps<'a, T>(
+    states: &'a mut [T],
+    cap: &'a mut [CapSums],
+) -> Vec<(&'a mut T, Option<&'a mut CapSums>)> {
+    let caps = cap
+        .iter_mut()
+        .map(Some)
+        .chain(std::iter::repeat_with(|| None));
+    states.iter_mut().zip(caps).collect()
+}
+
 /// Receiver `r`'s occluded share above its geometric plane (less), as
 /// [`share`], from two estimates: the cap's from its `cosine` cosine-weighted
 /// rays' `cap` sums, the band's from its `band` uniform band rays (of
@@ -289,29 +324,15 @@ pub fn share_cap_band(
         std::array::from_fn(|i| (cap.open[i] + cap.occluded[i]) * cap_per);
     let mut occluded: [f32; VIS_COUNT] = std::array::from_fn(|i| cap.occluded[i] * cap_per);
     let mut visible = cap.visible;
-    for (&dir, &hit) in directions.iter().zip(occluded_rays) {
-        let y = sh::basis16(dir);
-        for (a, y) in all.iter_mut().zip(y) {
-            *a += band_per * y;
-        }
-        if hit {
-            for (o, y) in occluded.iter_mut().zip(y) {
-                *o += band_per * y;
-            }
-        } else {
-            visible += 1;
-        }
-    }
+    let sums = (&mut all, &mut occluded, &mut visible);
+    add_rays(sums, band_per, directions, occluded_rays);
     let above = cap.above + directions.len() as u32;
     let seen = if above > 0 {
         visible as f32 / above as f32
     } else {
         1.0
     };
-    let open = sh::open_visibility(n);
-    let below = sh::below_plane_visibility(n, geo);
-    let open_above: [f32; VIS_COUNT] = std::array::from_fn(|i| open[i] - below[i]);
-    sh::occluded_share(&open_above, &occluded, &all, 1.0, seen)
+    sh::occluded_share(&open_above(n, geo), &occluded, &all, 1.0, seen)
 }
 
 /// Every receiver's [`share_cap_band`]: receiver r with its cap sums
@@ -403,24 +424,12 @@ mod tests {
                 })
                 .filter(|d| d.dot(geo) > 0.0)
                 .collect();
-            let closed = share_cap_band(
-                &r,
-                0,
-                &cap_of(&r, 16, |_| true),
-                16,
-                5,
-                &band,
-                &vec![true; band.len()],
-            );
-            let clear = share_cap_band(
-                &r,
-                0,
-                &cap_of(&r, 16, |_| false),
-                16,
-                5,
-                &band,
-                &vec![false; band.len()],
-            );
+            // Every ray, cap and band, occluded or every ray visible.
+            let all_rays = |occluded: bool| {
+                let cap = cap_of(&r, 16, |_| occluded);
+                share_cap_band(&r, 0, &cap, 16, 5, &band, &vec![occluded; band.len()])
+            };
+            let (closed, clear) = (all_rays(true), all_rays(false));
             for i in 0..VIS_COUNT {
                 assert!((closed[i] + open[i] - below[i]).abs() < 1e-4, "{deg} v{i}");
                 assert_eq!(clear[i], 0.0, "{deg} v{i}");

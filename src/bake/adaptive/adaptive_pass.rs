@@ -11,7 +11,7 @@
 
 use super::sums::{CHUNK, RaySums};
 use crate::atlas::Receivers;
-use crate::bake::visibility::CapSums;
+use crate::bake::visibility::{CapSums, with_caps};
 use crate::bake::{BakeParams, ReceiverRays};
 use crate::sh;
 use crate::trace::{Tracer, for_each_receiver};
@@ -49,11 +49,7 @@ pub fn adaptive_pass(
     p: &BakeParams,
     progress: &(dyn Fn(u64) + Sync),
 ) {
-    let caps = cap
-        .iter_mut()
-        .map(Some)
-        .chain(std::iter::repeat_with(|| None));
-    let mut states: Vec<(&mut RaySums, Option<&mut CapSums>)> = sums.iter_mut().zip(caps).collect();
+    let mut states = with_caps(sums, cap);
     for_each_receiver(
         tracer,
         &mut states,

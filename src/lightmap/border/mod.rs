@@ -307,8 +307,8 @@ pub const SEAM_SCALE: f64 = 2.0;
 /// of part of a page, [`super::build`]); a point whose cell has a tap not
 /// known is not traced and becomes a row whose target is NaN in every
 /// channel, so that the solve leaves whatever it ties not known. Returns
-/// the anchors and the rays cast at points outside geometry, the layer's included (the inside test's
-/// not counted).
+/// the anchors and the rays cast at points outside geometry, the layer's
+/// included (the inside test's not counted).
 #[allow(clippy::too_many_arguments)]
 pub fn anchors(
     tris: &[SurfaceTri],
@@ -333,43 +333,33 @@ pub fn anchors(
     let (all, points): (Vec<FitPoint>, Vec<FitPoint>) = match known {
         None => (Vec::new(), points),
         Some(_) => {
-            let kept = (points.iter().zip(&unknown))
-                .filter(|&(_, &u)| !u)
-                .map(|(p, _)| *p)
-                .collect();
+            let kept = all_but(&points, &unknown);
             (points, kept)
         }
-    };
-    let mut r = Receivers {
-        width,
-        height,
-        ..Default::default()
     };
     // Each point's rays are keyed by where it lies on the page, not by its
     // place in the list: an edit that adds or removes points elsewhere
     // (a moved mesh's cells turning flat or varied) leaves every other
     // point's rays as they were, so the fit changes only near the edit.
-    for p in &points {
-        r.push_surface_point(p.block, &tris[p.tri as usize], p.bary, true);
-    }
-    let params = BakeParams { max_distance, seed };
-    let inside = validity::inside_geometry(&r, tracer, max_distance, seed);
-    // A point inside geometry is left out of the fit, so its rays are not
-    // traced: the others' rays are keyed by their blocks, not by their
-    // places in the list, and come out the same without it.
-    let outside: Vec<FitPoint> = (points.iter().zip(&inside))
-        .filter(|&(_, &i)| !i)
-        .map(|(p, _)| *p)
-        .collect();
-    if outside.len() < points.len() {
-        r = Receivers {
+    let receivers_of = |points: &[FitPoint]| {
+        let mut r = Receivers {
             width,
             height,
             ..Default::default()
         };
-        for p in &outside {
+        for p in points {
             r.push_surface_point(p.block, &tris[p.tri as usize], p.bary, true);
         }
+        r
+    };
+    let mut r = receivers_of(&points);
+    let params = BakeParams { max_distance, seed };
+    let inside = validity::inside_geometry(&r, tracer, max_distance, seed);
+    // A point inside geometry is left out of the fit, so its rays are not
+    // traced: the others' rays come out the same without it (above).
+    let outside = all_but(&points, &inside);
+    if outside.len() < points.len() {
+        r = receivers_of(&outside);
     }
     let (w, h) = (width as f32, height as f32);
     let uv = |p: &FitPoint| [p.uv.x / w, p.uv.y / h];
@@ -404,6 +394,14 @@ pub fn anchors(
     (rows, rays)
 }
 
+/// The points of `points` whose `left_out` is false, in their order.
+fn all_but(points: &[FitPoint], left_out: &[bool]) -> Vec<FitPoint> {
+    (points.iter().zip(left_out))
+        .filter(|&(_, &l)| !l)
+        .map(|(p, _)| *p)
+        .collect()
+}
+
 /// AO and SH at every receiver of `r` (the fit's points, each keyed by its
 /// block) from its [`FIT_RAYS`]-ray run `slots[k]` of its sequence, and
 /// with `layer` the visibility layer's coefficients from the same rays in
@@ -419,11 +417,7 @@ fn targets(
 ) -> (Vec<(f32, [f32; SH_COUNT])>, Option<Vec<[f32; VIS_COUNT]>>) {
     let mut traced = vec![(0.0f32, [0.0f32; SH_COUNT]); r.len()];
     let mut cap = vec![visibility::CapSums::default(); if layer { r.len() } else { 0 }];
-    let caps = cap
-        .iter_mut()
-        .map(Some)
-        .chain(std::iter::repeat_with(|| None));
-    let mut states: Vec<_> = traced.iter_mut().zip(caps).collect();
+    let mut states = visibility::with_caps(&mut traced, &mut cap);
     for_each_receiver(
         tracer,
         &mut states,
