@@ -233,6 +233,9 @@ pub struct AdaptiveReport {
     /// Fraction of texels filtered (sigma of at least half a texel).
     pub texels_filtered: f64,
     pub mean_sigma_texels: f64,
+    /// Fraction of texels in contact filtered along a contact line
+    /// (`bake::adaptive::line`).
+    pub texels_on_contact_lines: f64,
 }
 
 impl AdaptiveReport {
@@ -244,6 +247,8 @@ impl AdaptiveReport {
         self.mean_rays_per_texel = mean(self.mean_rays_per_texel, other.mean_rays_per_texel);
         self.texels_filtered = mean(self.texels_filtered, other.texels_filtered);
         self.mean_sigma_texels = mean(self.mean_sigma_texels, other.mean_sigma_texels);
+        self.texels_on_contact_lines =
+            mean(self.texels_on_contact_lines, other.texels_on_contact_lines);
         self.pre_pass_rays += other.pre_pass_rays;
         self.adaptive_rays += other.adaptive_rays;
         let mut h: std::collections::BTreeMap<u32, usize> =
@@ -267,6 +272,7 @@ impl AdaptiveReport {
             rays_per_texel_histogram: a.ray_histogram(),
             texels_filtered: filtered.clone().count() as f64 / n,
             mean_sigma_texels: filtered.map(|&s| s as f64).sum::<f64>() / n,
+            texels_on_contact_lines: a.contact_lines as f64 / n,
         }
     }
 }

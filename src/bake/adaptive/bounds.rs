@@ -24,6 +24,7 @@
 use super::allocation::{nothing_seen_variance, stratified_sd};
 use super::filter::FilterSupport;
 use super::grid::{TexelGrid, along_line, neighbourhood_count, neighbourhood_mean, spread_min};
+use super::line::{ContactLines, contact_lines};
 use super::options::{AdaptiveOptions, MAX_REACH};
 use super::prepass::PrePass;
 use super::strata::Strata;
@@ -43,6 +44,8 @@ pub struct Bounds {
     pub z_min: Vec<f32>,
     /// Filter sigma in texels (0: not filtered).
     pub sigma_texels: Vec<f32>,
+    /// The receivers filtered along a contact line ([`super::line`]).
+    pub lines: ContactLines,
     /// One-ray variance before the filter (0: the pre-pass only).
     pub unfiltered: Vec<f32>,
     /// The same after the filter (over N_eff).
@@ -98,12 +101,14 @@ pub fn bounds(
         .collect();
     let sd_reach: Vec<u32> = support.iter().map(|&s| s.max(SD_REACH)).collect();
     let sd = neighbourhood_mean(receivers, grid, inside, &own_sd, &sd_reach);
+    let lines = contact_lines(receivers, grid, inside, &sigma, o);
     let n_eff = FilterSupport {
         receivers,
         grid,
         inside,
         sigma_texels: &sigma,
         z_min: &z_filter,
+        lines: Some(&lines),
     }
     .effective_neighbours();
     // A receiver whose neighbourhood saw nothing: the variance that all of
@@ -133,6 +138,7 @@ pub fn bounds(
     Bounds {
         z_min: z_filter,
         sigma_texels: sigma,
+        lines,
         unfiltered,
         filtered,
     }

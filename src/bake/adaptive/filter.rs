@@ -14,7 +14,9 @@
 //! ends at the first neighbour that does not lend or at a chart border,
 //! and both sides keep the shorter run, so a gradient is not shifted.
 
-use super::grid::TexelGrid;
+pub use super::grid::LENDER_NORMAL_AGREEMENT;
+use super::grid::{TexelGrid, symmetric_runs};
+use super::line::{ContactLines, Line, OnLines};
 use super::options::MAX_REACH;
 use crate::atlas::Receivers;
 use crate::bake::sheared::lends_rays;
@@ -30,17 +32,24 @@ pub struct FilterSupport<'a> {
     pub inside: &'a [bool],
     pub sigma_texels: &'a [f32],
     pub z_min: &'a [f32],
+    /// The receivers on contact lines, filtered along them alone
+    /// ([`super::line`]); `None`: no lines.
+    pub lines: Option<&'a ContactLines>,
 }
 
-/// Shading-normal agreement of lenders: cos 10 degrees (the leak rule's 25 let too much through). The
-/// filter averages occlusion projected on SH in world axes, so a lender
-/// whose normal turns away lends a lobe turned with it: on curved surfaces
-/// the L1 band blurs. 10 degrees brings L1 and L2 under Monte Carlo's
-/// error for 1% more rays (`docs/measurements/constants.md`,
-/// LENDER_NORMAL_AGREEMENT).
-pub const LENDER_NORMAL_AGREEMENT: f32 = 0.985;
-
 impl FilterSupport<'_> {
+    /// What the filter along a contact line reads of this support.
+    #[inline]
+    fn on_lines(&self) -> OnLines<'_> {
+        OnLines {
+            receivers: self.receivers,
+            grid: self.grid,
+            inside: self.inside,
+            sigma_texels: self.sigma_texels,
+            lines: self.lines,
+        }
+    }
+
     /// The reach in texels of receiver `r`'s filter, if it is filtered.
     #[inline]
     fn reach(&self, r: usize) -> Option<usize> {
@@ -71,7 +80,15 @@ impl FilterSupport<'_> {
     /// border), and both sides keep the
     /// shorter run's length. Nothing for an unfiltered receiver.
     #[inline]
-    fn for_each_weight(&self, r: usize, vertical: bool, mut f: impl FnMut(usize, f32)) {
+    fn for_each_weight(&self, r: usize, vertical: bool, f: impl FnMut(usize, f32)) {
+        if let Some(lines) = self.lines {
+            match lines.of(r) {
+                Line::None => {}
+                Line::Row if vertical => return,
+                Line::Column if !vertical => return,
+                _ => return self.on_lines().for_each_weight(r, lines.reach, vertical, f),
+            }
+        }
         let Some(reach) = self.reach(r) else {
             return;
         };
@@ -80,34 +97,14 @@ impl FilterSupport<'_> {
         let sigma_world = self.sigma_texels[r] * fp;
         let inv2s2 = 1.0 / (2.0 * sigma_world * sigma_world);
         let (pr, geo) = (rc.position[r], rc.geo_normal[r]);
-        // Each side's run of lending receivers, outward from r, up to the
-        // first that does not lend (or no receiver: a chart border).
-        let side = |dir: isize, out: &mut [(usize, f32); MAX_REACH as usize]| -> usize {
-            for k in 1..=reach {
-                let Some(j) = self.grid.offset(rc, r, dir * k as isize, vertical) else {
-                    return k - 1;
-                };
-                let rel = rc.position[j] - pr;
-                if !self.lends(r, j, rel) {
-                    return k - 1;
-                }
+        let lend = |j: usize, _| {
+            let rel = rc.position[j] - pr;
+            self.lends(r, j, rel).then(|| {
                 let t = rel - geo * rel.dot(geo);
-                out[k - 1] = (j, (-t.length_squared() * inv2s2).exp());
-            }
-            reach
+                (-t.length_squared() * inv2s2).exp()
+            })
         };
-        let mut lo = [(0usize, 0.0f32); MAX_REACH as usize];
-        let mut hi = [(0usize, 0.0f32); MAX_REACH as usize];
-        // Symmetric truncation: as many texels on each side as the shorter
-        // run, so the weights stay centred on r where a chart border or a
-        // rejected neighbour cuts one side (a one-sided average of a
-        // gradient is biased by the gradient times the offset).
-        let k = side(-1, &mut lo).min(side(1, &mut hi));
-        f(r, 1.0);
-        for (&(a, wa), &(b, wb)) in lo[..k].iter().zip(&hi[..k]) {
-            f(a, wa);
-            f(b, wb);
-        }
+        symmetric_runs(self.grid, rc, r, reach, vertical, lend, f);
     }
 
     /// Effective number of receivers the separable filter averages for
@@ -140,7 +137,9 @@ impl FilterSupport<'_> {
                 if den > 0.0 {
                     (num * num / den).max(1.0)
                 } else {
-                    1.0
+                    // No column pass (unfiltered, or on a line along its
+                    // row): the row's own.
+                    (rows[r].0 * rows[r].0 / rows[r].1).max(1.0)
                 }
             })
             .collect()
@@ -259,6 +258,7 @@ mod tests {
                 inside: &self.inside,
                 sigma_texels: &self.sigma_texels,
                 z_min: &self.z_min,
+                lines: None,
             }
         }
     }
@@ -412,5 +412,41 @@ mod tests {
         };
         let (out, _) = masked.filter(values);
         assert!(out.iter().enumerate().all(|(r, &v)| r == 40 || v == 0.0));
+    }
+
+    #[test]
+    fn a_line_receiver_averages_along_the_line_alone() {
+        // The band of rows 0..=2; the receiver at (5, 0) is on a line along
+        // its row with both runs LINE_REACH long. Weights 1, a = e^-1/2, b =
+        // e^-2 at 0, 1 and 2 texels (a Gaussian of 1 texel).
+        let rc = flat_grid(12);
+        let (sigma, lines) = crate::bake::adaptive::line::tests::lines_of(&rc, |_, y| y <= 2);
+        let (inside, z) = (vec![false; rc.len()], vec![f32::INFINITY; rc.len()]);
+        let grid = TexelGrid::new(&rc);
+        let support = FilterSupport {
+            receivers: &rc,
+            grid: &grid,
+            inside: &inside,
+            sigma_texels: &sigma,
+            z_min: &z,
+            lines: Some(&lines),
+        };
+        let r = 5usize;
+        let (a, b) = ((-0.5f64).exp(), (-2.0f64).exp());
+        let (s1, s2) = (1.0 + 2.0 * a + 2.0 * b, 1.0 + 2.0 * a * a + 2.0 * b * b);
+        let n_eff = support.effective_neighbours()[r] as f64;
+        assert!((n_eff - s1 * s1 / s2).abs() < 1e-4, "{n_eff}");
+        // x^2 along the row: the weighted mean of (x + k)^2 is x^2 plus
+        // the weights' second moment; the rows across are not read (a
+        // step of 0.5 between y = 0 and y = 1 would show).
+        let f = |p: Vec3| 0.01 * p.x * p.x + if p.y < 0.5 { 0.0 } else { 0.5 };
+        let values: Vec<[f32; 10]> = rc.position.iter().map(|&p| [f(p); 10]).collect();
+        let (ao, sh) = support.filter(values);
+        let want = 0.01 * (25.0 + (2.0 * a + 8.0 * b) / s1);
+        assert!((ao[r] as f64 - want).abs() < 1e-5, "{} vs {want}", ao[r]);
+        assert!(sh[r].iter().all(|&v| (v as f64 - want).abs() < 1e-5));
+        // A receiver off the band keeps its filter (sigma 1 here, the
+        // isotropic one), one at the band's end its own value.
+        assert_eq!(ao[0], f(rc.position[0]));
     }
 }

@@ -7,11 +7,20 @@
 //! reduction over its compatible neighbours within its reach, rows then
 //! columns ([`spreads_to`]: normals within 25 degrees, not inside).
 
+use super::options::MAX_REACH;
 use crate::atlas::Receivers;
 use glam::Vec3;
 use rayon::prelude::*;
 
 /// Normal agreement of the z_min spread (cos 25 degrees, the leak rule's).
+/// Shading-normal agreement of lenders: cos 10 degrees (the leak rule's 25 let too much through). The
+/// filter averages occlusion projected on SH in world axes, so a lender
+/// whose normal turns away lends a lobe turned with it: on curved surfaces
+/// the L1 band blurs. 10 degrees brings L1 and L2 under Monte Carlo's
+/// error for 1% more rays (`docs/measurements/constants.md`,
+/// LENDER_NORMAL_AGREEMENT).
+pub const LENDER_NORMAL_AGREEMENT: f32 = 0.985;
+
 const SPREAD_AGREEMENT: f32 = 0.906;
 
 /// Receiver index of each atlas texel.
@@ -117,6 +126,48 @@ fn separable(
     };
     let rows = pass(values, false);
     pass(&rows, true)
+}
+
+/// Calls `f(j, w)` for the receivers a filter along receiver `r`'s row
+/// (`vertical` false) or column averages: `r` itself with w = 1, then
+/// each side's run outward up to `reach` texels, `weight(j, k)` giving
+/// the weight of receiver j `k` texels away or `None` where the run ends
+/// (a neighbour that does not lend; a missing one, a chart border, ends
+/// it too). Both sides keep the shorter run's length: the weights stay
+/// centred on r where a border or a rejected neighbour cuts one side (a
+/// one-sided average of a gradient is biased by the gradient times the
+/// offset).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn symmetric_runs(
+    grid: &TexelGrid,
+    receivers: &Receivers,
+    r: usize,
+    reach: usize,
+    vertical: bool,
+    weight: impl Fn(usize, usize) -> Option<f32>,
+    mut f: impl FnMut(usize, f32),
+) {
+    let side = |dir: isize, out: &mut [(usize, f32); MAX_REACH as usize]| -> usize {
+        for k in 1..=reach {
+            let Some(j) = grid.offset(receivers, r, dir * k as isize, vertical) else {
+                return k - 1;
+            };
+            let Some(w) = weight(j, k) else {
+                return k - 1;
+            };
+            out[k - 1] = (j, w);
+        }
+        reach
+    };
+    let mut lo = [(0usize, 0.0f32); MAX_REACH as usize];
+    let mut hi = [(0usize, 0.0f32); MAX_REACH as usize];
+    let k = side(-1, &mut lo).min(side(1, &mut hi));
+    f(r, 1.0);
+    for (&(a, wa), &(b, wb)) in lo[..k].iter().zip(&hi[..k]) {
+        f(a, wa);
+        f(b, wb);
+    }
 }
 
 /// Calls `f(j, d)` for every receiver j at most `reach` texels (d of them)

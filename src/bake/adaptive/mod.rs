@@ -42,6 +42,7 @@ pub(crate) mod allocation;
 pub(crate) mod bounds;
 pub(crate) mod filter;
 pub(crate) mod grid;
+pub(crate) mod line;
 pub(crate) mod options;
 pub(crate) mod prepass;
 pub(crate) mod strata;
@@ -79,16 +80,17 @@ pub struct PageWide {
 
 impl PageWide {
     /// How far (Chebyshev, texels) a receiver's value reads other
-    /// receivers' pre-pass: the bounds spread z_min and the visibility
-    /// over the neighbourhood (`max_reach`), N_eff over that (`max_reach`
-    /// again), the filter averages over its support (`max_reach`); with
-    /// [`FitSets`] a receiver's count reads whether the fit sets it, from
-    /// the first round's filtered values within 3 texels (its cells' taps
-    /// and the gutter texels they show), which read the same 3 reaches,
-    /// so the filter's own reach once more and 3 texels; and a margin of 2
-    /// texels.
+    /// receivers' pre-pass: its lenders' values (`max_reach` away, or a
+    /// contact line's reach), their counts (`line::count_reach`: the
+    /// spread z_min and N_eff, `max_reach` each, or through the contact
+    /// lines); with [`FitSets`] a receiver's count reads whether the fit
+    /// sets it, from the first round's filtered values within 3 texels
+    /// (its cells' taps and the gutter texels they show), which read the
+    /// same reaches, so the lenders' reach once more and 3 texels; and a
+    /// margin of 2 texels. Without contact lines, 4 `max_reach` + 5.
     pub fn halo(o: &AdaptiveOptions) -> u32 {
-        4 * o.max_reach + 5
+        let lenders = o.max_reach.max(line::line_reach(o));
+        2 * lenders + line::count_reach(o) + 5
     }
 }
 
@@ -108,6 +110,8 @@ pub struct AdaptiveStats {
     pub inside: Vec<bool>,
     /// The allocation's page scale (found, or carried in).
     pub scale: Option<Scale>,
+    /// Receivers filtered along a contact line ([`line`]).
+    pub contact_lines: usize,
 }
 
 impl AdaptiveStats {
@@ -191,7 +195,7 @@ pub fn bake(
         .into_iter()
         .map(|t| t.max(o.pre_rays))
         .collect();
-    let (z_min, sigma_texels) = (b.z_min, b.sigma_texels);
+    let (z_min, sigma_texels, lines) = (b.z_min, b.sigma_texels, b.lines);
     let (mut sums, inside, mut cap) = (pre.sums, pre.inside, pre.cap);
     timer.lap("bounds");
 
@@ -204,6 +208,7 @@ pub fn bake(
         inside: &inside,
         sigma_texels: &sigma_texels,
         z_min: &z_min,
+        lines: Some(&lines),
     };
     // A receiver's 10 values (AO, SH) from its sums at `rays` rays. Equal
     // weight per receiver in the filter: weighting by ray count (inverse
@@ -289,6 +294,7 @@ pub fn bake(
         sigma_texels,
         inside,
         scale: Some(scale),
+        contact_lines: lines.count(),
     };
     (bake, stats)
 }

@@ -35,6 +35,18 @@ pub struct AdaptiveOptions {
     /// Widest filter reach in texels (2 sigma).
     #[cfg_attr(feature = "cli", arg(skip = Self::DEFAULT.max_reach))]
     pub max_reach: u32,
+    /// Receivers in contact filtered along their contact line
+    /// (`bake::adaptive::line`); off: left unfiltered, as the paper
+    /// leaves them.
+    #[cfg_attr(feature = "cli", arg(skip = Self::DEFAULT.contact_lines))]
+    #[serde(default = "contact_lines_on")]
+    pub contact_lines: bool,
+}
+
+/// [`AdaptiveOptions::contact_lines`]'s default, for settings written
+/// before the option.
+fn contact_lines_on() -> bool {
+    true
 }
 
 impl AdaptiveOptions {
@@ -47,6 +59,7 @@ impl AdaptiveOptions {
         omega_h: 2.8,
         mu: 0.7,
         max_reach: 4,
+        contact_lines: true,
     };
 }
 
