@@ -13,15 +13,16 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Normal agreement of the z_min spread (cos 25 degrees, the leak rule's).
-/// Shading-normal agreement of lenders: cos 10 degrees (the leak rule's 25 let too much through). The
+const SPREAD_AGREEMENT: f32 = 0.906;
+
+/// Shading-normal agreement of the filter's lenders, on contact lines
+/// too: cos 10 degrees (the leak rule's 25 let too much through). The
 /// filter averages occlusion projected on SH in world axes, so a lender
 /// whose normal turns away lends a lobe turned with it: on curved surfaces
 /// the L1 band blurs. 10 degrees brings L1 and L2 under Monte Carlo's
 /// error for 1% more rays (`docs/measurements/constants.md`,
 /// LENDER_NORMAL_AGREEMENT).
 pub const LENDER_NORMAL_AGREEMENT: f32 = 0.985;
-
-const SPREAD_AGREEMENT: f32 = 0.906;
 
 /// Receiver index of each atlas texel.
 pub struct TexelGrid {

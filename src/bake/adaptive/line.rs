@@ -124,9 +124,17 @@ impl OnLines<'_> {
     ) {
         let inv2s2 = 1.0 / (2.0 * LINE_SIGMA * LINE_SIGMA);
         let lend = |j: usize, k: usize| {
-            (self.lends(r, j, k, vertical)).then(|| (-((k * k) as f32) * inv2s2).exp())
+            self.lends(r, j, k, vertical)
+                .then(|| (-((k * k) as f32) * inv2s2).exp())
         };
         symmetric_runs(self.grid, self.receivers, r, reach, vertical, lend, f);
+    }
+
+    /// Whether receiver j is in contact: not filtered (sigma 0) and not
+    /// inside geometry.
+    #[inline]
+    fn in_contact(&self, j: usize) -> bool {
+        !self.inside[j] && self.sigma_texels[j] <= 0.0
     }
 
     /// Whether receiver j, `k` texels from receiver r along its row (or
@@ -143,8 +151,7 @@ impl OnLines<'_> {
         let (n, geo) = (rc.normal[r], rc.geo_normal[r]);
         let rel = rc.position[j] - rc.position[r];
         let row_line = vertical && self.lines.is_some_and(|l| l.of(j) == Line::Row);
-        !self.inside[j]
-            && self.sigma_texels[j] <= 0.0
+        self.in_contact(j)
             && !row_line
             && rel.length() <= LINE_SPAN * k as f32 * rc.footprint[r]
             && lends_rays(rel, n, geo, rc.normal[j], rc.geo_normal[j], rc.footprint[r])
@@ -195,12 +202,11 @@ pub fn contact_lines(
         sigma_texels,
         lines: None,
     };
-    let contact = |j: usize| !inside[j] && sigma_texels[j] <= 0.0;
     let axis = (0..receivers.len())
         .into_par_iter()
         .with_min_len(1024)
         .map(|r| {
-            if !contact(r) {
+            if !support.in_contact(r) {
                 return Line::None;
             }
             let neighbour = |k: isize, vertical: bool| grid.offset(receivers, r, k, vertical);
@@ -217,7 +223,9 @@ pub fn contact_lines(
                     .iter()
                     .map(|&d| {
                         (1..=EXTENT_REACH as isize)
-                            .map_while(|k| neighbour(d * k, vertical).filter(|&j| contact(j)))
+                            .map_while(|k| {
+                                neighbour(d * k, vertical).filter(|&j| support.in_contact(j))
+                            })
                             .count()
                     })
                     .sum()
