@@ -86,6 +86,17 @@ fn help_texts_quote_the_library_constants() {
     assert!(flat.contains(&format!(
         "vertex normals within {degrees} degrees, faces within {faces} degrees"
     )));
+    let (edge, used) = (
+        aobake::atlas::unwrap::LADDER_MAX_EDGE,
+        aobake::atlas::unwrap::LADDER_UTILIZATION,
+    );
+    assert!(
+        flat.contains(&format!(
+            "page of at most {edge} texels that the asked padding and chart width fill to under {}%:",
+            (used * 100.0).round()
+        )),
+        "--ladder's help must say when the ladder runs ({edge}, {used})"
+    );
     let defaults = aobake::BakeSettings::DEFAULT;
     assert!(flat.contains(&format!("--quality <Q> Adaptive: the bake's error is that of QUALITY-ray Monte Carlo (its predicted AO RMSE over the atlas) [default: {}]", defaults.adaptive.quality)));
     // Every method is listed with the name the library gives it.

@@ -9,6 +9,7 @@
 
 mod common;
 
+use aobake::atlas::Ladder;
 use aobake::job::{Level, RunOptions};
 use aobake::lightmap::engine_view::{self, TexelClass};
 use aobake::stage::StageTimer;
@@ -287,4 +288,57 @@ fn no_two_charts_share_a_texel_a_lookup_reads() {
             "{resolution}: {claimed} of {texels} claimed"
         );
     }
+}
+
+/// The engine view chooses a tight small page's padding and chart width
+/// (issue 64, `--ladder view`, the default): the flight helmet at 512 fits
+/// padding 2 as asked but at under 35% of the page, so it is also packed
+/// with a texel of padding, both are baked small, and the lesser error is
+/// kept. Measured apart from the ladder's own probe (the bake's engine
+/// view: other points, another seed, a 512-ray reference, the full bake),
+/// the kept option reads less error than the rule's (a texel of padding:
+/// 0.79x on this page by the independent checker), and `--ladder rule`
+/// keeps the asked options.
+#[test]
+fn the_engine_view_chooses_a_tight_small_pages_options() {
+    let sc = common::bundled_scene("flight_helmet.glb");
+    let view_of = |ladder: Ladder| {
+        let s = aobake::BakeSettings {
+            ladder,
+            ..settings(512, 32, None)
+        };
+        let run = RunOptions {
+            engine_view_points: 8000,
+            ..RunOptions::QUIET
+        };
+        let mut job = aobake::job::Job::new(&sc, &s, &run, StageTimer::new());
+        let level = job.level().unwrap();
+        let done = job.pages(&level, &[0], &mut |_, _, _| {}).unwrap();
+        let view = done[0].engine_view.expect("measured");
+        (level.atlas.relaxed, level.ladder.clone(), view.all.ao_rmse)
+    };
+    let (rule_relaxed, rule_ladder, rule_error) = view_of(Ladder::Rule);
+    assert_eq!(rule_relaxed, None, "padding 2 fits as asked");
+    assert_eq!(rule_ladder, None);
+    let (relaxed, ladder, error) = view_of(Ladder::View);
+    let ladder = ladder.expect("a tight page offers a choice");
+    // The asked options first, measured with a texel of padding; the
+    // lesser error kept.
+    assert_eq!(ladder.rungs.len(), 2, "{ladder:?}");
+    let (asked, other) = (&ladder.rungs[0], &ladder.rungs[1]);
+    assert!(asked.asked && asked.padding == 2, "{ladder:?}");
+    assert!(asked.utilization < 0.35, "{ladder:?}");
+    assert_eq!((other.padding, other.min_chart_width), (1, 1.0));
+    assert!(other.texel_density > asked.texel_density, "{ladder:?}");
+    assert_eq!(ladder.chosen, 1, "{ladder:?}");
+    assert!(other.ao_rmse < asked.ao_rmse, "{ladder:?}");
+    assert_eq!(
+        relaxed.map(|r| (r.padding, r.min_chart_width)),
+        Some((1, 1.0))
+    );
+    // The bake's own engine view agrees with the probe's choice.
+    assert!(
+        error < 0.9 * rule_error,
+        "kept {error} against the rule's {rule_error}: {ladder:?}"
+    );
 }

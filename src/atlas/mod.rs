@@ -18,5 +18,5 @@ pub mod unwrap;
 
 pub use rasterize::{Receivers, rasterize};
 pub use unwrap::{
-    Atlas, AtlasSize, ChartTooLarge, MAX_ATLAS_EDGE, Packing, PageSize, UnwrapOptions,
+    Atlas, AtlasSize, ChartTooLarge, Ladder, MAX_ATLAS_EDGE, Packing, PageSize, UnwrapOptions,
 };

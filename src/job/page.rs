@@ -49,6 +49,9 @@ pub struct Page<'a> {
     /// Per receiver: whether the edit since the carried bake can change
     /// it ([`super::carry::dirty`]); `None` without a carry.
     pub dirty: Option<Vec<bool>>,
+    /// Rays of each border fit point: [`lightmap::border::FIT_RAYS`], fewer
+    /// for the ladder's probe bakes (`job/ladder.rs`).
+    pub fit_rays: u32,
 }
 
 impl Level {
@@ -102,6 +105,7 @@ impl Level {
             fit_cache: Default::default(),
             carry: PageCarry::default(),
             dirty: None,
+            fit_rays: lightmap::border::FIT_RAYS,
         })
     }
 }
@@ -375,6 +379,7 @@ impl Page<'_> {
             known: None,
             changed: None,
             noise_rays: s.noise_rays(),
+            fit_rays: self.fit_rays,
             sigma_texels,
         }
     }

@@ -98,6 +98,10 @@ pub struct Report {
     pub shard: Option<Shard>,
     pub charts: u32,
     pub utilization: f32,
+    /// A small page's options as the engine view measured them, and the
+    /// one kept (`--ladder view`, where it chose among several).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ladder: Option<super::level::ladder::LadderReport>,
     pub texels: usize,
     /// Texels inside or behind geometry, filled from their nearest valid
     /// texel ([`crate::bake::validity`]).
@@ -371,6 +375,7 @@ pub fn level_report(
         shard: None,
         charts: level.atlas.charts,
         utilization: level.atlas.utilization,
+        ladder: level.ladder.clone(),
         texels,
         texels_inside: done.iter().map(|d| d.texels_inside).sum(),
         baked_primitives: level.geometry.receivers.len(),

@@ -14,7 +14,7 @@
 //! from the code. Errors name a setting by its field here (`sparse_rays`);
 //! the command line shows the flag instead (`--sparse-rays`).
 
-use crate::atlas::{AtlasSize, Packing};
+use crate::atlas::{AtlasSize, Ladder, Packing};
 use crate::bake::adaptive::AdaptiveOptions;
 use crate::bake::sheared::ShearedOptions;
 use crate::bake::signal::TexelBudget;
@@ -131,6 +131,14 @@ pub struct BakeSettings {
     /// Chart packing
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.packing))]
     pub packing: Packing,
+    /// A --resolution page of at most 512 texels that the asked padding
+    /// and chart width fill to under 35%: view also packs it with a texel
+    /// of padding and charts a texel wide, bakes both at a low budget and
+    /// keeps the one whose lookups read less error at surface points; rule
+    /// keeps the asked options wherever they fit unstarved
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.ladder))]
+    #[serde(default, skip_serializing_if = "Ladder::is_view")]
+    pub ladder: Ladder,
     #[cfg_attr(feature = "cli", command(flatten))]
     pub uv: UvSource,
     /// Baking method: adaptive (ray counts per texel from the occluders'
@@ -241,6 +249,7 @@ impl BakeSettings {
         padding: 2,
         min_chart_width: 2.0,
         packing: Packing::Fast,
+        ladder: Ladder::View,
         uv: UvSource::Generate,
         // Adaptive: measured against 256-ray Monte Carlo on five scenes
         // in the comparison table of `docs/method-adaptive.md`.

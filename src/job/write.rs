@@ -60,8 +60,17 @@ pub fn write(
     };
     let mut warnings = scene.warnings.clone();
     if let (Some(relaxed), AtlasSize::Resolution(r)) = (level.atlas.relaxed, s.size) {
-        let why = match relaxed.starved {
-            true => format!(
+        let view = level.ladder.as_ref().filter(|l| l.chosen != 0);
+        let why = match (view, relaxed.starved) {
+            (Some(l), _) => format!(
+                "with padding {} and minimum chart width {} the charts cover {:.0}% of one {r}x{r} page, and the engine view read {:.4} AO error there against {:.4} with less",
+                s.padding,
+                s.min_chart_width,
+                100.0 * l.rungs[0].utilization,
+                l.rungs[0].ao_rmse,
+                l.rungs[l.chosen].ao_rmse
+            ),
+            (None, true) => format!(
                 "with padding {} and minimum chart width {} the charts would cover under {:.0}% of one {r}x{r} page",
                 s.padding,
                 s.min_chart_width,
@@ -69,7 +78,7 @@ pub fn write(
             ),
             // (No count: the atlas's is the relaxed packing's, and without
             // a minimum width the bent strips are not cut into pieces.)
-            false => format!(
+            (None, false) => format!(
                 "the charts do not fit one {r}x{r} page with padding {} and minimum chart width {}",
                 s.padding, s.min_chart_width
             ),

@@ -143,6 +143,8 @@ pub struct PageBake<'a> {
     /// cell must stand out from ([`border::step_span`]); `None` for the
     /// sheared filter.
     pub noise_rays: Option<u32>,
+    /// Rays of each border fit point ([`border::FIT_RAYS`] in a bake).
+    pub fit_rays: u32,
 }
 
 /// What the lightmap stage made of a page.
@@ -265,10 +267,13 @@ pub fn build(
                 let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
                 let (tracer, d) = (p.tracer, p.max_distance);
                 let inside = r.centers_inside();
-                let (anchors, rays) =
-                    border::anchors(&tris, w, h, &fitted, &inside, known, tracer, d, seed, layer);
+                let per = p.fit_rays;
+                let (anchors, rays) = border::anchors(
+                    &tris, w, h, &fitted, &inside, known, tracer, d, seed, per, layer,
+                );
                 std::sync::Arc::new(border::FitTargets {
                     layer,
+                    per_point: per,
                     free,
                     fitted,
                     anchors,
@@ -280,7 +285,12 @@ pub fn build(
                 Some(cache) => {
                     let mut kept = cache.lock().unwrap_or_else(|e| e.into_inner());
                     match &*kept {
-                        Some(t) if t.layer == layer && t.free == fit_at && t.fitted == fitted => {
+                        Some(t)
+                            if t.layer == layer
+                                && t.per_point == p.fit_rays
+                                && t.free == fit_at
+                                && t.fitted == fitted =>
+                        {
                             t.clone()
                         }
                         _ => {

@@ -281,6 +281,8 @@ pub fn fit_sets(
 #[derive(Debug, Default)]
 pub struct FitTargets {
     pub layer: bool,
+    /// Rays a point.
+    pub per_point: u32,
     /// The texels the solve moves.
     pub free: Vec<bool>,
     /// The free texels whose cells hold the points ([`fitted_taps`]).
@@ -300,8 +302,9 @@ pub(crate) type FitCache = std::sync::Mutex<Option<std::sync::Arc<FitTargets>>>;
 pub const SEAM_SCALE: f64 = 2.0;
 
 /// The anchors of a page's border band: [`points`] on `tris` traced with
-/// [`FIT_RAYS`] rays (AO, SH), and with `layer` [`FIT_BAND_RAYS`]
-/// for the visibility layer's coefficients after them, inside-geometry
+/// `rays` rays each ([`FIT_RAYS`] in a bake), and with `layer` the band
+/// rays of as many ([`FIT_BAND_RAYS`] at FIT_RAYS) for the visibility
+/// layer's coefficients after them, inside-geometry
 /// points left out. `seed`: the page's own (its points and rays depend on
 /// nothing else). `known`: per texel, whether its value is known (a bake
 /// of part of a page, [`super::build`]); a point whose cell has a tap not
@@ -320,6 +323,7 @@ pub fn anchors(
     tracer: &Tracer,
     max_distance: f32,
     seed: u64,
+    rays: u32,
     layer: bool,
 ) -> (Vec<Anchor>, u64) {
     let points = points(tris, width, height, free, center_inside, seed);
@@ -364,7 +368,8 @@ pub fn anchors(
     let (w, h) = (width as f32, height as f32);
     let uv = |p: &FitPoint| [p.uv.x / w, p.uv.y / h];
     let slots: Vec<u32> = outside.iter().map(|p| p.slot).collect();
-    let (traced, v) = targets(&r, &slots, tracer, &params, layer);
+    let per = rays;
+    let (traced, v) = targets(&r, &slots, tracer, &params, per, layer);
     let anchors: Vec<Anchor> = outside
         .iter()
         .enumerate()
@@ -383,7 +388,8 @@ pub fn anchors(
         })
         .collect();
     let n = outside.len() as u64;
-    let rays = n * FIT_RAYS as u64 + if layer { n * FIT_BAND_RAYS as u64 } else { 0 };
+    let band = visibility::band_rays(per) as u64;
+    let rays = n * per as u64 + if layer { n * band } else { 0 };
     if all.is_empty() {
         return (anchors, rays);
     }
@@ -403,9 +409,9 @@ fn all_but(points: &[FitPoint], left_out: &[bool]) -> Vec<FitPoint> {
 }
 
 /// AO and SH at every receiver of `r` (the fit's points, each keyed by its
-/// block) from its [`FIT_RAYS`]-ray run `slots[k]` of its sequence, and
+/// block) from its `rays`-ray run `slots[k]` of its sequence, and
 /// with `layer` the visibility layer's coefficients from the same rays in
-/// the cap and its [`FIT_BAND_RAYS`]-ray run `slots[k]` of the layer's
+/// the cap and its band-ray run `slots[k]` of the layer's
 /// band sequence ([`visibility::shares_cap_band`]).
 #[allow(clippy::type_complexity)]
 fn targets(
@@ -413,6 +419,7 @@ fn targets(
     slots: &[u32],
     tracer: &Tracer,
     params: &BakeParams,
+    rays: u32,
     layer: bool,
 ) -> (Vec<(f32, [f32; SH_COUNT])>, Option<Vec<[f32; VIS_COUNT]>>) {
     let mut traced = vec![(0.0f32, [0.0f32; SH_COUNT]); r.len()];
@@ -422,7 +429,7 @@ fn targets(
         tracer,
         &mut states,
         64,
-        |k, _, batch| mc::emit_receiver(r, k, slots[k] * FIT_RAYS, FIT_RAYS, params, batch),
+        |k, _, batch| mc::emit_receiver(r, k, slots[k] * rays, rays, params, batch),
         |k, (out, cap), directions, occluded| {
             **out = mc::integrate_receiver(r, k, directions, occluded);
             if let Some(c) = cap {
@@ -438,9 +445,9 @@ fn targets(
     );
     drop(states);
     let v = layer.then(|| {
-        let n = FIT_BAND_RAYS;
+        let n = visibility::band_rays(rays);
         let band = |k: usize| (slots[k] * n, n);
-        let shares = visibility::shares_cap_band(r, tracer, &cap, |_| FIT_RAYS, band, params);
+        let shares = visibility::shares_cap_band(r, tracer, &cap, |_| rays, band, params);
         visibility::finish(r, shares)
     });
     (traced, v)

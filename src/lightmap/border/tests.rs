@@ -37,7 +37,9 @@ fn a_points_target_does_not_depend_on_the_points_before_it() {
     let tracer = Tracer::with_sides(&[roof], &[false]);
     let all = vec![true; 100];
     let fit = |tris: &[SurfaceTri]| {
-        let (anchors, _) = anchors(tris, 10, 10, &all, &all, None, &tracer, 3.0, 5, false);
+        let (anchors, _) = anchors(
+            tris, 10, 10, &all, &all, None, &tracer, 3.0, 5, FIT_RAYS, false,
+        );
         anchors
     };
     let alone = fit(&a);
@@ -92,7 +94,9 @@ fn points_inside_geometry_trace_no_rays() {
     let tracer = Tracer::with_sides(&box_tris, &vec![true; box_tris.len()]);
     let all = vec![true; 100];
     let every = points(&sq, 10, 10, &all, &all, 5).len();
-    let (anchors, rays) = anchors(&sq, 10, 10, &all, &all, None, &tracer, 3.0, 5, false);
+    let (anchors, rays) = anchors(
+        &sq, 10, 10, &all, &all, None, &tracer, 3.0, 5, FIT_RAYS, false,
+    );
     assert!(every > 40, "{every}");
     // About half the points lie inside (x < 3 of x in [1, 5]).
     assert!(
@@ -135,7 +139,7 @@ fn a_blocks_points_together_trace_one_stratified_set() {
         }
         r
     };
-    let (runs, _) = targets(&at(4), &[0, 1, 2, 3], &tracer, &params, false);
+    let (runs, _) = targets(&at(4), &[0, 1, 2, 3], &tracer, &params, FIT_RAYS, false);
     let mean = runs.iter().map(|t| t.0).sum::<f32>() / 4.0;
     let whole = mc::bake(&at(1), &tracer, 4 * FIT_RAYS, &params, &|_| {});
     let first = mc::bake(&at(1), &tracer, FIT_RAYS, &params, &|_| {});

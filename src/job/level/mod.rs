@@ -7,8 +7,10 @@
 //! memory is the level plus one page, and the memory limit is checked per
 //! page.
 
+pub mod ladder;
+
 use super::device::{self, Backend};
-use crate::atlas::{self, Atlas, AtlasSize, UnwrapOptions};
+use crate::atlas::{self, Atlas, AtlasSize, Ladder, UnwrapOptions};
 use crate::bake::signal::{self, TexelBudget};
 use crate::error::{Error, Result};
 use crate::geometry::{BakeGeometry, BakeSpace};
@@ -21,6 +23,7 @@ use crate::lightmap::seams::find::cross_page_seams;
 use crate::lightmap::seams::{CrossSeam, FLAT_DEGREES, SMOOTH_DEGREES, SeamMode};
 use crate::stage::{StageTimer, progress_bar};
 use crate::trace::Tracer;
+use ladder::LadderReport;
 
 /// The share of a page a uniform atlas's charts cover, for the texel edge
 /// the signal's pre-pass floors distances at (the packer's utilisation on
@@ -50,6 +53,9 @@ pub struct Level {
     /// Per page, the bake-space area of its triangles, computed when first
     /// asked for ([`Level::page_surface_areas`]).
     surface_areas: std::sync::OnceLock<Vec<f64>>,
+    /// A small page's options as the engine view measured them
+    /// (`--ladder view`), where it chose among several.
+    pub ladder: Option<LadderReport>,
 }
 
 impl Level {
@@ -145,7 +151,7 @@ impl Level {
         // the unwrap runs: neither needs the other, and the unwrap's chart
         // packing is mostly serial, so the build's parallel work fills the
         // idle threads. (With the signal pre-pass it was built before.)
-        let (atlas, traced) = rayon::join(
+        let (atlases, traced) = rayon::join(
             || unwrap_atlas(scene, &geometry, s, run, scales.as_deref()),
             || match early_tracer {
                 Some(early) => Ok(early),
@@ -157,7 +163,8 @@ impl Level {
                 }
             },
         );
-        let atlas = atlas?;
+        let mut atlases = atlases?;
+        let atlas = atlases.remove(0);
         timer.lap("unwrap + bvh");
         let visibility_meshes: Vec<bool> = geometry
             .receivers
@@ -200,7 +207,7 @@ impl Level {
         } else {
             Vec::new()
         };
-        Ok(Level {
+        let mut level = Level {
             geometry,
             atlas,
             tracer,
@@ -211,7 +218,14 @@ impl Level {
             backend,
             settings: s.clone(),
             surface_areas: std::sync::OnceLock::new(),
-        })
+            ladder: None,
+        };
+        if !atlases.is_empty() {
+            level.ladder = Some(ladder::choose(&mut level, atlases, scene, s)?);
+            level.surface_areas = std::sync::OnceLock::new();
+            timer.lap("ladder");
+        }
+        Ok(level)
     }
 
     /// How many pages the atlas has.
@@ -247,14 +261,16 @@ impl Level {
 }
 
 /// The atlas of every page: the UVs asked for (`--uv existing`) or an
-/// unwrap; a chart that fits no page is an error naming its mesh.
+/// unwrap; a chart that fits no page is an error naming its mesh. With
+/// `--ladder view`, a tight small page's other options follow it
+/// ([`crate::atlas::unwrap::ladder_applies`]).
 fn unwrap_atlas(
     scene: &Scene,
     geometry: &BakeGeometry,
     s: &BakeSettings,
     run: &RunOptions,
     scales: Option<&[f32]>,
-) -> Result<Atlas> {
+) -> Result<Vec<Atlas>> {
     let diagonal = geometry.space.diagonal;
     let label = |k: usize| {
         scene.geometries[scene.instances[geometry.receivers[k].instance].geometry].label()
@@ -262,7 +278,7 @@ fn unwrap_atlas(
     Ok(match (s.uv, s.size) {
         (UvSource::Existing(set), AtlasSize::Resolution(r)) => {
             let uvs = scene.lightmap_uvs(&geometry.receivers, set)?;
-            atlas::unwrap::existing(&geometry.receivers, uvs, r)
+            vec![atlas::unwrap::existing(&geometry.receivers, uvs, r)]
         }
         (_, size) => {
             let options = UnwrapOptions {
@@ -282,11 +298,12 @@ fn unwrap_atlas(
                 &options,
                 diagonal,
                 scales,
+                s.ladder == Ladder::View,
                 &report,
             );
             pb.finish_and_clear();
             match atlas? {
-                Ok(atlas) => atlas,
+                Ok(atlases) => atlases,
                 Err(c) => {
                     let page = match size {
                         AtlasSize::TexelDensity { page_size, .. } => page_size,

@@ -9,10 +9,14 @@
 //! never spans pages). Backed by the pure-Rust `uvunwrap` crate; the rest of
 //! the pipeline sees only these types, so a backend can be swapped.
 
+mod ladder;
+
 pub use super::pages::{ChartTooLarge, ChartedMesh, PageSize};
 use super::pages::{crop_last_page, largest_chart};
 use crate::error::{Error, Result};
 use crate::geometry::ReceiverMesh;
+use ladder::alternative;
+pub use ladder::{LADDER_MAX_EDGE, LADDER_UTILIZATION, Ladder, ladder_applies};
 
 /// Largest atlas edge in texels (a 16k x 16k page with SH is ~6 GiB of floats).
 pub const MAX_ATLAS_EDGE: u32 = 16384;
@@ -203,8 +207,8 @@ pub fn check_size(size: AtlasSize) -> Result<()> {
 /// [`check_size`]). `diagonal` converts a world texel density into bake
 /// space.
 pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -> Result<Atlas> {
-    match unwrap_with_progress(meshes, options, diagonal, None, &|_, _, _| {})? {
-        Ok(atlas) => Ok(atlas),
+    match unwrap_with_progress(meshes, options, diagonal, None, false, &|_, _, _| {})? {
+        Ok(mut atlases) => Ok(atlases.swap_remove(0)),
         Err(c) => Err(Error::Limit(format!(
             "a chart of receiver mesh {} is {}x{} texels, larger than a page; a texel density of {:.4} would fit",
             c.mesh, c.width, c.height, c.fitting_density
@@ -215,14 +219,18 @@ pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -
 /// [`unwrap`], reporting (stage name, done, total if known) as it goes,
 /// and returning a chart that fits no page as its own outcome (the
 /// pipeline names its glTF object). `scales`: per mesh, a factor on its
-/// texel density (`--texel-budget signal`); `None`, uniform.
+/// texel density (`--texel-budget signal`); `None`, uniform. The atlas
+/// is the first of those returned; with `ladder`, a small page packed as
+/// asked but tight ([`ladder_applies`]) comes with the same charts packed
+/// with a texel of padding after it, for the engine view to choose.
 pub(crate) fn unwrap_with_progress(
     meshes: &[ReceiverMesh],
     options: &UnwrapOptions,
     diagonal: f64,
     scales: Option<&[f32]>,
+    ladder: bool,
     progress: &(dyn Fn(&'static str, usize, Option<usize>) + Sync),
-) -> Result<std::result::Result<Atlas, ChartTooLarge>> {
+) -> Result<std::result::Result<Vec<Atlas>, ChartTooLarge>> {
     let density = match options.size {
         AtlasSize::Resolution(r) => uvunwrap::Density::Auto { page_size: r },
         AtlasSize::TexelDensity {
@@ -308,6 +316,7 @@ pub(crate) fn unwrap_with_progress(
     // A `--resolution` atlas is one page: where the charts need more, or
     // fit but starve it, less padding and narrower charts before a refusal.
     let mut relaxed = None;
+    let mut other = None;
     if let AtlasSize::Resolution(resolution) = options.size {
         (atlas, relaxed) = relax(atlas, resolution, options, &opts, &generate)?;
         if atlas.page_count > 1 {
@@ -316,7 +325,24 @@ pub(crate) fn unwrap_with_progress(
                 atlas.chart_count, atlas.page_count
             )));
         }
+        if ladder && ladder_applies(resolution, atlas.utilization, relaxed) {
+            let density = atlas.texels_per_unit;
+            other = alternative(resolution, density, options, &opts, &generate)?;
+        }
     }
+    let mut out = vec![to_atlas(atlas, options, relaxed)?];
+    if let Some((a, r)) = other {
+        out.push(to_atlas(a, options, Some(r))?);
+    }
+    Ok(Ok(out))
+}
+
+/// The unwrapper's one-page atlas as the pipeline's [`Atlas`].
+fn to_atlas(
+    atlas: uvunwrap::Atlas,
+    options: &UnwrapOptions,
+    relaxed: Option<Relaxed>,
+) -> Result<Atlas> {
     if atlas.width > MAX_ATLAS_EDGE || atlas.height > MAX_ATLAS_EDGE {
         return Err(Error::Limit(format!(
             "the atlas would be {}x{} texels, more than the {MAX_ATLAS_EDGE} limit; lower the texel density",
@@ -352,7 +378,7 @@ pub(crate) fn unwrap_with_progress(
             height: h,
         }],
     };
-    Ok(Ok(Atlas {
+    Ok(Atlas {
         width: pages.iter().map(|p| p.width).max().unwrap_or(w),
         height: pages.iter().map(|p| p.height).max().unwrap_or(h),
         charts: atlas.chart_count,
@@ -361,7 +387,7 @@ pub(crate) fn unwrap_with_progress(
         pages,
         meshes,
         relaxed,
-    }))
+    })
 }
 
 /// Builds the atlas from an existing UV set of every receiver mesh instead
@@ -413,35 +439,6 @@ fn relax(
     opts: &uvunwrap::Options,
     generate: &dyn Fn(&uvunwrap::Options) -> std::result::Result<uvunwrap::Atlas, uvunwrap::Error>,
 ) -> Result<(uvunwrap::Atlas, Option<Relaxed>)> {
-    let pack = |o: &uvunwrap::Options| generate(o).map_err(|e| Error::Unwrap(e.to_string()));
-    let page = resolution as f64 * resolution as f64;
-    let pack_rung = |r: &Relaxed| -> Result<uvunwrap::Atlas> {
-        let o = uvunwrap::Options {
-            padding: r.padding,
-            min_chart_width: r.min_chart_width,
-            lookup_packing: true,
-            ..*opts
-        };
-        let rows = pack(&o)?;
-        if r.padding == 0
-            || options.packing != Packing::Fast
-            || rows.page_count > 1
-            || rows.chart_count as f64 * page > NEST_BUDGET
-        {
-            return Ok(rows);
-        }
-        let nested = pack(&uvunwrap::Options {
-            packing: uvunwrap::Packing::Shape,
-            ..o
-        })?;
-        Ok(
-            if nested.page_count <= 1 && nested.texels_per_unit > rows.texels_per_unit {
-                nested
-            } else {
-                rows
-            },
-        )
-    };
     let mut relaxed = None;
     let asked_fits = atlas.page_count <= 1;
     for r in relaxed_options(options.padding, options.min_chart_width) {
@@ -449,7 +446,7 @@ fn relax(
         if fits && atlas.utilization >= STARVED_UTILIZATION {
             break;
         }
-        let next = pack_rung(&r)?;
+        let next = pack_rung(&r, resolution, options, opts, generate)?;
         let pays = next.page_count <= 1
             && next.texels_per_unit as f64 >= STARVED_GAIN * atlas.texels_per_unit as f64;
         if !fits || pays {
@@ -461,6 +458,43 @@ fn relax(
         }
     }
     Ok((atlas, relaxed))
+}
+
+/// Rung `r` of the ladder of a `resolution` page packed (see [`relax`]).
+pub(super) fn pack_rung(
+    r: &Relaxed,
+    resolution: u32,
+    options: &UnwrapOptions,
+    opts: &uvunwrap::Options,
+    generate: &dyn Fn(&uvunwrap::Options) -> std::result::Result<uvunwrap::Atlas, uvunwrap::Error>,
+) -> Result<uvunwrap::Atlas> {
+    let pack = |o: &uvunwrap::Options| generate(o).map_err(|e| Error::Unwrap(e.to_string()));
+    let page = resolution as f64 * resolution as f64;
+    let o = uvunwrap::Options {
+        padding: r.padding,
+        min_chart_width: r.min_chart_width,
+        lookup_packing: true,
+        ..*opts
+    };
+    let rows = pack(&o)?;
+    if r.padding == 0
+        || options.packing != Packing::Fast
+        || rows.page_count > 1
+        || rows.chart_count as f64 * page > NEST_BUDGET
+    {
+        return Ok(rows);
+    }
+    let nested = pack(&uvunwrap::Options {
+        packing: uvunwrap::Packing::Shape,
+        ..o
+    })?;
+    Ok(
+        if nested.page_count <= 1 && nested.texels_per_unit > rows.texels_per_unit {
+            nested
+        } else {
+            rows
+        },
+    )
 }
 
 #[cfg(test)]
