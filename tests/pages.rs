@@ -639,3 +639,69 @@ fn a_resolution_too_small_for_the_charts_relaxes_padding_with_a_warning() {
         "{e}"
     );
 }
+
+/// A small page the engine view chooses for (`--ladder view`), baked in
+/// shards: each partial records the choice and its figures, the merge
+/// builds that atlas from them (it bakes no option again) and writes the
+/// bytes of the bake in one process, the warning that says why included.
+#[test]
+fn a_merge_takes_the_shards_small_page_choice() {
+    let dir = tempfile::tempdir().unwrap();
+    // 300 quads at 176: padding 2 fits them on under 35% of the page.
+    let input = dir.path().join("charts.glb");
+    let quads: Vec<common::MeshSpec> = (0..300)
+        .map(|k| {
+            let o = [2.0 * k as f32, 0.0, 0.0];
+            common::quad(o, [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], true)
+        })
+        .collect();
+    std::fs::write(&input, common::glb(&quads, common::plain_nodes(300))).unwrap();
+    let input = input.to_str().unwrap();
+    let args = |out: &'static str| -> Vec<String> {
+        let out = dir.path().join(out).to_str().unwrap().to_string();
+        [
+            input,
+            &out,
+            "--resolution",
+            "176",
+            "--method",
+            "mc",
+            "--rays",
+            "16",
+        ]
+        .into_iter()
+        .chain(["--max-distance", "1", "-q"])
+        .map(str::to_string)
+        .collect()
+    };
+    let run = |a: Vec<String>| ok(&aobake(&a.iter().map(String::as_str).collect::<Vec<_>>()));
+    let report = dir.path().join("single.json");
+    let mut single = args("single.glb");
+    single.extend(["--report".into(), report.to_str().unwrap().into()]);
+    run(single);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let ladder = &report["ladder"];
+    assert_eq!(
+        ladder["rungs"].as_array().map(Vec::len),
+        Some(2),
+        "{report}"
+    );
+    for i in 0..2 {
+        let mut a = args("out.glb");
+        a.extend(["--shard".into(), format!("{i}/2")]);
+        run(a);
+    }
+    let partial = std::fs::read(dir.path().join("out.glb.shard-0-of-2")).unwrap();
+    let has = |s: &[u8]| partial.windows(s.len()).any(|w| w == s);
+    assert!(
+        has(b"\"ladder\":{\"rungs\":"),
+        "the partial records the choice"
+    );
+    let out = dir.path().join("out.glb");
+    ok(&aobake(&["merge", out.to_str().unwrap(), "-q"]));
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(dir.path().join("single.glb")).unwrap()
+    );
+}

@@ -90,6 +90,8 @@ pub fn bake_shard(
         from_prev: (mine.iter().copied())
             .filter(|&k| from_prev[k as usize].is_some())
             .collect(),
+        ladder: (level.ladder.as_ref())
+            .map(|l| serde_json::to_value(l).expect("a report serializes")),
     };
     let mut baked = done.iter().map(|d| &d.encoded);
     let pages: Vec<(u32, &Encoded)> = (mine.iter())
@@ -156,7 +158,15 @@ pub fn merge(output: &Path) -> Result<Merged> {
     // With `--reuse`: the level in the bake space the shards took from
     // PREV, and the pass across pages over the pages they baked.
     let space = reference.space.map(BakeSpace::from_array);
-    let level = Level::build(&scene, &on_cpu, &run, space, &mut job.timer)?;
+    // The small page's atlas the shards' ladder chose, not measured again.
+    let chosen = match &reference.ladder {
+        Some(v) => Some(
+            serde_json::from_value(v.clone())
+                .map_err(|e| set.refuse(format!("its atlas choice cannot be read: {e}")))?,
+        ),
+        None => None,
+    };
+    let level = Level::build_with(&scene, &on_cpu, &run, space, chosen, &mut job.timer)?;
     let from_prev: Vec<u32> = (set.partials.iter())
         .flat_map(|(_, p)| p.header.from_prev.iter().copied())
         .collect();

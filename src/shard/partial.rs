@@ -64,6 +64,11 @@ pub struct PartialHeader {
     /// their seams as PREV solved them.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub from_prev: Vec<u32>,
+    /// A small page's atlas options as the engine view measured them and
+    /// the one kept (`--ladder view`; the bake report's `ladder`), so the
+    /// merge builds the level the shards baked without baking them again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ladder: Option<serde_json::Value>,
 }
 
 /// One page's encoded images: blob indices and the floats' bits.

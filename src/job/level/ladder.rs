@@ -25,7 +25,7 @@ use crate::error::Result;
 use crate::gltf::Scene;
 use crate::job::settings::{BakeSettings, Method, RunOptions};
 use crate::stage::StageTimer;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Surface points each option is measured at.
 pub const PROBE_POINTS: usize = 8_000;
@@ -47,7 +47,7 @@ pub const PROBE_FIT_RAYS: u32 = 16;
 const PROBE_SEED: u64 = 0x001a_dde4_5eed;
 
 /// One option of the ladder, as measured.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct LadderRung {
     /// Padding and minimum chart width it was packed with.
     pub padding: u32,
@@ -63,7 +63,7 @@ pub struct LadderRung {
 }
 
 /// The options the engine view chose among and which it kept.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct LadderReport {
     /// The asked options first, then a texel of padding and chart width.
     pub rungs: Vec<LadderRung>,

@@ -107,6 +107,20 @@ impl Level {
         space: Option<BakeSpace>,
         timer: &mut StageTimer,
     ) -> Result<Level> {
+        Level::build_with(scene, s, run, space, None, timer)
+    }
+
+    /// [`Level::build`] with the ladder's choice already made
+    /// (`chosen`: what the shards' level chose, which the merge takes
+    /// instead of baking the options again: it casts no ray).
+    pub(crate) fn build_with(
+        scene: &Scene,
+        s: &BakeSettings,
+        run: &RunOptions,
+        space: Option<BakeSpace>,
+        chosen: Option<LadderReport>,
+        timer: &mut StageTimer,
+    ) -> Result<Level> {
         if scene.baked_count() == 0 {
             return Err(Error::Empty(if scene.instances.is_empty() {
                 "the default scene has no triangle primitive (points and lines are not baked)"
@@ -220,10 +234,26 @@ impl Level {
             surface_areas: std::sync::OnceLock::new(),
             ladder: None,
         };
-        if !atlases.is_empty() {
-            level.ladder = Some(ladder::choose(&mut level, atlases, scene, s)?);
-            level.surface_areas = std::sync::OnceLock::new();
-            timer.lap("ladder");
+        match (atlases.is_empty(), chosen) {
+            (true, None) => {}
+            (false, None) => {
+                level.ladder = Some(ladder::choose(&mut level, atlases, scene, s)?);
+                level.surface_areas = std::sync::OnceLock::new();
+                timer.lap("ladder");
+            }
+            (_, Some(report)) => {
+                let options = 1 + atlases.len();
+                if report.rungs.len() != options || report.chosen >= options {
+                    return Err(Error::Merge(format!(
+                        "the shards' level chose among {} atlas options, but the input offers {options}",
+                        report.rungs.len()
+                    )));
+                }
+                if report.chosen > 0 {
+                    level.atlas = atlases.swap_remove(report.chosen - 1);
+                }
+                level.ladder = Some(report);
+            }
         }
         Ok(level)
     }
