@@ -578,10 +578,15 @@ fn a_resolution_too_small_for_the_charts_relaxes_padding_with_a_warning() {
     // 32 x 32 one (1,024) only without padding (and then without width,
     // which the ladder drops first), a 16 x 16 one (256) not at all.
     let sc = many_charts(300);
+    // The rule alone (`--ladder rule`): where it relaxes to no padding the
+    // engine view may take a starved padding-1 rung instead, which
+    // `a_merge_takes_the_shards_small_page_choice` and tests/thin_charts.rs
+    // check.
     let bake = |r: u32| {
         let mut s = common::settings(r, 16, Some(1.0));
         s.padding = 2;
         s.min_chart_width = 2.0;
+        s.ladder = aobake::atlas::Ladder::Rule;
         aobake::bake_scene(&sc, &s)
     };
     for (r, padding, width) in [(64, 1, 1), (32, 0, 0)] {

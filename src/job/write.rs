@@ -62,14 +62,19 @@ pub fn write(
     if let (Some(relaxed), AtlasSize::Resolution(r)) = (level.atlas.relaxed, s.size) {
         let view = level.ladder.as_ref().filter(|l| l.chosen != 0);
         let why = match (view, relaxed.starved) {
-            (Some(l), _) => format!(
-                "with padding {} and minimum chart width {} the charts cover {:.0}% of one {r}x{r} page, and the engine view read {:.4} AO error there against {:.4} with less",
-                s.padding,
-                s.min_chart_width,
-                100.0 * l.rungs[0].utilization,
-                l.rungs[0].ao_rmse,
-                l.rungs[l.chosen].ao_rmse
-            ),
+            (Some(l), _) => {
+                let (first, kept) = (&l.rungs[0], &l.rungs[l.chosen]);
+                format!(
+                    "on one {r}x{r} page the engine view read {:.4} AO error with padding {} and minimum chart width {} ({:.0}% of it used) and {:.4} with padding {} and minimum chart width {}",
+                    first.ao_rmse,
+                    first.padding,
+                    first.min_chart_width,
+                    100.0 * first.utilization,
+                    kept.ao_rmse,
+                    kept.padding,
+                    kept.min_chart_width
+                )
+            }
             (None, true) => format!(
                 "with padding {} and minimum chart width {} the charts would cover under {:.0}% of one {r}x{r} page",
                 s.padding,

@@ -15,7 +15,7 @@ pub use super::pages::{ChartTooLarge, ChartedMesh, PageSize};
 use super::pages::{crop_last_page, largest_chart};
 use crate::error::{Error, Result};
 use crate::geometry::ReceiverMesh;
-use ladder::alternative;
+use ladder::alternatives;
 pub use ladder::{LADDER_MAX_EDGE, LADDER_UTILIZATION, Ladder, ladder_applies};
 
 /// Largest atlas edge in texels (a 16k x 16k page with SH is ~6 GiB of floats).
@@ -220,9 +220,9 @@ pub fn unwrap(meshes: &[ReceiverMesh], options: &UnwrapOptions, diagonal: f64) -
 /// and returning a chart that fits no page as its own outcome (the
 /// pipeline names its glTF object). `scales`: per mesh, a factor on its
 /// texel density (`--texel-budget signal`); `None`, uniform. The atlas
-/// is the first of those returned; with `ladder`, a small page packed as
-/// asked but tight ([`ladder_applies`]) comes with the same charts packed
-/// with a texel of padding after it, for the engine view to choose.
+/// is the first of those returned; with `ladder`, a small page that
+/// offers a choice ([`ladder_applies`]) comes with the same charts packed
+/// the other ways worth baking after it, for the engine view to choose.
 pub(crate) fn unwrap_with_progress(
     meshes: &[ReceiverMesh],
     options: &UnwrapOptions,
@@ -316,7 +316,7 @@ pub(crate) fn unwrap_with_progress(
     // A `--resolution` atlas is one page: where the charts need more, or
     // fit but starve it, less padding and narrower charts before a refusal.
     let mut relaxed = None;
-    let mut other = None;
+    let mut others = Vec::new();
     if let AtlasSize::Resolution(resolution) = options.size {
         (atlas, relaxed) = relax(atlas, resolution, options, &opts, &generate)?;
         if atlas.page_count > 1 {
@@ -327,11 +327,11 @@ pub(crate) fn unwrap_with_progress(
         }
         if ladder && ladder_applies(resolution, atlas.utilization, relaxed) {
             let density = atlas.texels_per_unit;
-            other = alternative(resolution, density, options, &opts, &generate)?;
+            others = alternatives(resolution, relaxed, density, options, &opts, &generate)?;
         }
     }
     let mut out = vec![to_atlas(atlas, options, relaxed)?];
-    if let Some((a, r)) = other {
+    for (a, r) in others {
         out.push(to_atlas(a, options, Some(r))?);
     }
     Ok(Ok(out))
