@@ -50,7 +50,7 @@ pub struct Page<'a> {
     /// it ([`super::carry::dirty`]); `None` without a carry.
     pub dirty: Option<Vec<bool>>,
     /// Rays of each border fit point: [`lightmap::border::FIT_RAYS`], fewer
-    /// for the ladder's probe bakes (`job/ladder.rs`).
+    /// for the ladder's probe bakes (`job/level/ladder.rs`).
     pub fit_rays: u32,
 }
 
