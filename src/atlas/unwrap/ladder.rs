@@ -76,15 +76,15 @@ pub fn ladder_applies(resolution: u32, utilization: f32, relaxed: Option<Relaxed
 /// [`ladder_applies`]: as asked, the first of [`relaxed_options`] (a
 /// texel of padding, charts at least a texel wide); relaxed to no
 /// padding, every rung with a texel of padding, starved or not. Each as
-/// the rule packs its rungs, where it holds the charts on one
+/// the rule packs its rungs (taken from `packed` where the rule packed it
+/// already), where it holds the charts on one
 /// `resolution` page, less those another option dominates ([`dominated`]).
 pub(super) fn alternatives(
     resolution: u32,
     picked: Option<Relaxed>,
     density: f32,
     options: &UnwrapOptions,
-    opts: &uvunwrap::Options,
-    generate: &dyn Fn(&uvunwrap::Options) -> std::result::Result<uvunwrap::Atlas, uvunwrap::Error>,
+    mut packed: Packed,
 ) -> Result<Vec<(uvunwrap::Atlas, Relaxed)>> {
     let rungs = relaxed_options(options.padding, options.min_chart_width);
     let tried: Vec<Relaxed> = match picked {
@@ -93,7 +93,13 @@ pub(super) fn alternatives(
     };
     let mut out = Vec::new();
     for r in tried {
-        let a = pack_rung(&r, resolution, options, opts, generate)?;
+        let same = |(p, _): &(Relaxed, uvunwrap::Atlas)| {
+            (p.padding, p.min_chart_width) == (r.padding, r.min_chart_width)
+        };
+        let a = match packed.passed.iter().position(same) {
+            Some(k) => packed.passed.swap_remove(k).1,
+            None => pack_rung(&r, resolution, options, packed.opts, packed.generate)?,
+        };
         if a.page_count <= 1 {
             let starved = picked.is_none_or(|p| p.starved);
             out.push((a, Relaxed { starved, ..r }));
@@ -110,6 +116,16 @@ pub(super) fn alternatives(
         !dominated(all[k], &all)
     });
     Ok(out)
+}
+
+/// What the rule's ladder packed: the rungs it passed over (or took and
+/// then replaced), which [`alternatives`] weighs without packing again,
+/// and how to pack the others.
+pub(super) struct Packed<'a> {
+    pub passed: Vec<(Relaxed, uvunwrap::Atlas)>,
+    pub opts: &'a uvunwrap::Options,
+    pub generate:
+        &'a dyn Fn(&uvunwrap::Options) -> std::result::Result<uvunwrap::Atlas, uvunwrap::Error>,
 }
 
 /// Whether option `o` ((padding, minimum width), texels per unit) is

@@ -15,8 +15,8 @@ pub use super::pages::{ChartTooLarge, ChartedMesh, PageSize};
 use super::pages::{crop_last_page, largest_chart};
 use crate::error::{Error, Result};
 use crate::geometry::ReceiverMesh;
-use ladder::alternatives;
 pub use ladder::{LADDER_MAX_EDGE, LADDER_UTILIZATION, Ladder, ladder_applies};
+use ladder::{Packed, alternatives};
 
 /// Largest atlas edge in texels (a 16k x 16k page with SH is ~6 GiB of floats).
 pub const MAX_ATLAS_EDGE: u32 = 16384;
@@ -318,7 +318,9 @@ pub(crate) fn unwrap_with_progress(
     let mut relaxed = None;
     let mut others = Vec::new();
     if let AtlasSize::Resolution(resolution) = options.size {
-        (atlas, relaxed) = relax(atlas, resolution, options, &opts, &generate)?;
+        // The rungs packed and passed over, which the ladder weighs again.
+        let mut passed = Vec::new();
+        (atlas, relaxed) = relax(atlas, resolution, options, &opts, &generate, &mut passed)?;
         if atlas.page_count > 1 {
             return Err(Error::Limit(format!(
                 "the {} charts cannot share one atlas page even without padding (they need {} pages); raise the resolution",
@@ -327,7 +329,12 @@ pub(crate) fn unwrap_with_progress(
         }
         if ladder && ladder_applies(resolution, atlas.utilization, relaxed) {
             let density = atlas.texels_per_unit;
-            others = alternatives(resolution, relaxed, density, options, &opts, &generate)?;
+            let packed = Packed {
+                passed,
+                opts: &opts,
+                generate: &generate,
+            };
+            others = alternatives(resolution, relaxed, density, options, packed)?;
         }
     }
     let mut out = vec![to_atlas(atlas, options, relaxed)?];
@@ -438,8 +445,9 @@ fn relax(
     options: &UnwrapOptions,
     opts: &uvunwrap::Options,
     generate: &dyn Fn(&uvunwrap::Options) -> std::result::Result<uvunwrap::Atlas, uvunwrap::Error>,
+    passed: &mut Vec<(Relaxed, uvunwrap::Atlas)>,
 ) -> Result<(uvunwrap::Atlas, Option<Relaxed>)> {
-    let mut relaxed = None;
+    let mut relaxed: Option<Relaxed> = None;
     let asked_fits = atlas.page_count <= 1;
     for r in relaxed_options(options.padding, options.min_chart_width) {
         let fits = atlas.page_count <= 1;
@@ -450,11 +458,16 @@ fn relax(
         let pays = next.page_count <= 1
             && next.texels_per_unit as f64 >= STARVED_GAIN * atlas.texels_per_unit as f64;
         if !fits || pays {
-            atlas = next;
+            let before = std::mem::replace(&mut atlas, next);
+            if let Some(b) = relaxed {
+                passed.push((b, before));
+            }
             relaxed = Some(Relaxed {
                 starved: asked_fits,
                 ..r
             });
+        } else {
+            passed.push((r, next));
         }
     }
     Ok((atlas, relaxed))
