@@ -133,9 +133,10 @@ pub struct BakeSettings {
     pub packing: Packing,
     /// A --resolution page of at most 512 texels that the asked padding
     /// and chart width fill to under 35%: view also packs it with a texel
-    /// of padding and charts a texel wide, bakes both at a low budget and
-    /// keeps the one whose lookups read less error at surface points; rule
-    /// keeps the asked options wherever they fit unstarved
+    /// of padding and charts a texel wide (and a page relaxed to no
+    /// padding with a texel of padding), bakes each at a low budget and
+    /// keeps the one whose lookups read the least error at surface points;
+    /// rule keeps the asked options wherever they fit unstarved
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = Self::DEFAULT.ladder))]
     #[serde(default, skip_serializing_if = "Ladder::is_view")]
     pub ladder: Ladder,

@@ -267,13 +267,13 @@ pub fn build(
                 let seed = mix64(p.seed ^ BORDER_SEED ^ mix64(p.page as u64));
                 let (tracer, d) = (p.tracer, p.max_distance);
                 let inside = r.centers_inside();
-                let per = p.fit_rays;
+                let per_point = p.fit_rays;
                 let (anchors, rays) = border::anchors(
-                    &tris, w, h, &fitted, &inside, known, tracer, d, seed, per, layer,
+                    &tris, w, h, &fitted, &inside, known, tracer, d, seed, per_point, layer,
                 );
                 std::sync::Arc::new(border::FitTargets {
                     layer,
-                    per_point: per,
+                    per_point,
                     free,
                     fitted,
                     anchors,

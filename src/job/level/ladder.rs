@@ -1,11 +1,12 @@
 //! A small page's padding and minimum chart width, chosen by the engine
 //! view (`--ladder view`, the default).
 //!
-//! In: a [`Level`] built on the rule's atlas (the asked options, on a
-//! small page they fit tightly: [`crate::atlas::unwrap::ladder_applies`]),
-//! the same charts packed with a texel of padding, the scene and the
-//! settings. Out: the level on the atlas whose small bake reads less AO
-//! error at surface points, and the figures of both ([`LadderReport`]).
+//! In: a [`Level`] built on the rule's atlas, on a small page where the
+//! rule cannot decide ([`crate::atlas::unwrap::ladder_applies`]: tight as
+//! asked, or relaxed to no padding), the same charts packed the other ways
+//! worth baking, the scene and the settings. Out: the level on the atlas
+//! whose small bake reads the least AO error at surface points, and the
+//! figures of every option ([`LadderReport`]).
 //!
 //! Why: on a tight page every texel of padding or of chart width is taken
 //! from the density, and whether it pays depends on the charts, which
@@ -16,8 +17,8 @@
 //! budget, looked up where an engine looks (bilinear lookups of its
 //! written textures at [`PROBE_POINTS`] surface points, uniform by area:
 //! the options share triangles and differ only in UVs, so the same seed
-//! gives both the same points and reference) and the lesser error over
-//! all points is kept; the asked options win a tie.
+//! gives every one the same points and reference) and the least error
+//! over all points is kept; the rule's pick wins a tie.
 
 use super::Level;
 use crate::atlas::Atlas;
@@ -65,7 +66,8 @@ pub struct LadderRung {
 /// The options the engine view chose among and which it kept.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct LadderReport {
-    /// The asked options first, then a texel of padding and chart width.
+    /// The rule's pick first, then the other options in the ladder's
+    /// order.
     pub rungs: Vec<LadderRung>,
     /// Index of the option kept.
     pub chosen: usize,

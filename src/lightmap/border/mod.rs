@@ -79,11 +79,6 @@ use serde::{Deserialize, Serialize};
 /// (`docs/measurements/border-fit-cost.md`).
 pub const FIT_RAYS: u32 = 64;
 
-/// Uniform band rays of each fitted point's visibility layer, as the
-/// adaptive bake gives a receiver of [`FIT_RAYS`] rays
-/// (`visibility::band_rays`); the cap takes the point's own rays.
-pub const FIT_BAND_RAYS: u32 = visibility::band_rays(FIT_RAYS);
-
 /// A fitted point's row weight relative to a seam row's (seams-only):
 /// the fit has ~4 rows per texel of the border band against each texel's
 /// data term of 1.
@@ -302,9 +297,10 @@ pub(crate) type FitCache = std::sync::Mutex<Option<std::sync::Arc<FitTargets>>>;
 pub const SEAM_SCALE: f64 = 2.0;
 
 /// The anchors of a page's border band: [`points`] on `tris` traced with
-/// `rays` rays each ([`FIT_RAYS`] in a bake), and with `layer` the band
-/// rays of as many ([`FIT_BAND_RAYS`] at FIT_RAYS) for the visibility
-/// layer's coefficients after them, inside-geometry
+/// `per_point` rays each ([`FIT_RAYS`] in a bake), and with `layer` the
+/// uniform band rays the adaptive bake gives a receiver of as many
+/// (`visibility::band_rays`; the cap takes the point's own rays) for the
+/// visibility layer's coefficients after them, inside-geometry
 /// points left out. `seed`: the page's own (its points and rays depend on
 /// nothing else). `known`: per texel, whether its value is known (a bake
 /// of part of a page, [`super::build`]); a point whose cell has a tap not
@@ -323,7 +319,7 @@ pub fn anchors(
     tracer: &Tracer,
     max_distance: f32,
     seed: u64,
-    rays: u32,
+    per_point: u32,
     layer: bool,
 ) -> (Vec<Anchor>, u64) {
     let points = points(tris, width, height, free, center_inside, seed);
@@ -368,8 +364,7 @@ pub fn anchors(
     let (w, h) = (width as f32, height as f32);
     let uv = |p: &FitPoint| [p.uv.x / w, p.uv.y / h];
     let slots: Vec<u32> = outside.iter().map(|p| p.slot).collect();
-    let per = rays;
-    let (traced, v) = targets(&r, &slots, tracer, &params, per, layer);
+    let (traced, v) = targets(&r, &slots, tracer, &params, per_point, layer);
     let anchors: Vec<Anchor> = outside
         .iter()
         .enumerate()
@@ -388,8 +383,8 @@ pub fn anchors(
         })
         .collect();
     let n = outside.len() as u64;
-    let band = visibility::band_rays(per) as u64;
-    let rays = n * per as u64 + if layer { n * band } else { 0 };
+    let band = visibility::band_rays(per_point) as u64;
+    let rays = n * per_point as u64 + if layer { n * band } else { 0 };
     if all.is_empty() {
         return (anchors, rays);
     }
